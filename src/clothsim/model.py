@@ -1,0 +1,124 @@
+"""The cloth model: everything about the cloth that does not change while it runs.
+
+Built once from a :class:`~clothsim.scene.ClothSpec`; a reset restores the
+state from it and changing ks or the spring toggles never rebuilds it.
+Arrays are structure-of-arrays so that the solver kernels take them directly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import ClothSpec
+
+STRUCTURAL, SHEARING, BENDING = 0, 1, 2
+SPRING_KINDS = ("structural", "shearing", "bending")
+
+
+@dataclass(frozen=True)
+class ClothModel:
+    num_width_points: int
+    num_height_points: int
+    rest_positions: np.ndarray
+    """start positions of the point masses [m], float64 (N, 3), row-major (j is the row)"""
+    pinned: np.ndarray
+    """True where a point never moves, bool (N,)"""
+    spring_a: np.ndarray
+    """first end of each spring, int32 (S,)"""
+    spring_b: np.ndarray
+    """second end of each spring, int32 (S,)"""
+    spring_rest: np.ndarray
+    """rest length of each spring [m], float64 (S,)"""
+    spring_kind: np.ndarray
+    """STRUCTURAL, SHEARING or BENDING, int8 (S,); springs are sorted by kind"""
+    kind_start: np.ndarray
+    """springs of kind k are ``kind_start[k] : kind_start[k+1]``, int64 (4,)"""
+    triangles: np.ndarray
+    """vertex indices, two triangles per grid cell, int32 (T, 3), counter-clockwise seen from +y / -z"""
+    uvs: np.ndarray
+    """texture coordinates in [0, 1]², float32 (N, 2)"""
+    width: float
+    height: float
+    thickness: float
+
+    @property
+    def num_points(self) -> int:
+        return self.rest_positions.shape[0]
+
+    @property
+    def num_springs(self) -> int:
+        return self.spring_a.shape[0]
+
+    def index(self, i: int, j: int) -> int:
+        """Row-major index of grid point (i along width, j along height)."""
+        return j * self.num_width_points + i
+
+
+def grid_positions(spec: ClothSpec, seed: int = 0) -> np.ndarray:
+    """Start positions by orientation, as the CS184 format defines them."""
+    nw, nh = spec.num_width_points, spec.num_height_points
+    i = np.tile(np.arange(nw), nh)
+    j = np.repeat(np.arange(nh), nw)
+    pos = np.empty((nw * nh, 3), dtype=np.float64)
+    pos[:, 0] = i * (spec.width / (nw - 1))
+    if spec.orientation == 0:
+        pos[:, 1] = 1.0
+        pos[:, 2] = j * (spec.height / (nh - 1))
+    else:
+        pos[:, 1] = j * (spec.height / (nh - 1))
+        pos[:, 2] = np.random.default_rng(seed).uniform(-0.001, 0.001, nw * nh)
+    return pos
+
+
+def grid_springs(nw: int, nh: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Springs of a grid: (a, b, kind), grouped by kind.
+
+    Structural to the left and upper neighbour, shearing to the upper-left and
+    upper-right diagonal, bending to the point two left and two above.
+    """
+    idx = np.arange(nw * nh).reshape(nh, nw)
+    pairs = [
+        (STRUCTURAL, idx[:, 1:], idx[:, :-1]),     # left
+        (STRUCTURAL, idx[1:, :], idx[:-1, :]),     # up
+        (SHEARING, idx[1:, 1:], idx[:-1, :-1]),    # upper-left
+        (SHEARING, idx[1:, :-1], idx[:-1, 1:]),    # upper-right
+        (BENDING, idx[:, 2:], idx[:, :-2]),        # two left
+        (BENDING, idx[2:, :], idx[:-2, :]),        # two up
+    ]
+    a = np.concatenate([p[1].ravel() for p in pairs]).astype(np.int32)
+    b = np.concatenate([p[2].ravel() for p in pairs]).astype(np.int32)
+    kind = np.concatenate([np.full(p[1].size, p[0], dtype=np.int8) for p in pairs])
+    return a, b, kind
+
+
+def grid_triangles(nw: int, nh: int) -> np.ndarray:
+    """Two triangles per cell, wound so horizontal cloth faces +y."""
+    idx = np.arange(nw * nh).reshape(nh, nw)
+    p00, p10 = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    p01, p11 = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    t1 = np.stack([p00, p01, p10], axis=1)
+    t2 = np.stack([p10, p01, p11], axis=1)
+    return np.concatenate([t1, t2]).astype(np.int32)
+
+
+def build_model(spec: ClothSpec, seed: int = 0) -> ClothModel:
+    nw, nh = spec.num_width_points, spec.num_height_points
+    pos = grid_positions(spec, seed)
+    pinned = np.zeros(nw * nh, dtype=bool)
+    for i, j in spec.pinned:
+        pinned[j * nw + i] = True
+    a, b, kind = grid_springs(nw, nh)
+    rest = np.linalg.norm(pos[a] - pos[b], axis=1)
+    u = np.tile(np.arange(nw) / (nw - 1), nh)
+    v = np.repeat(np.arange(nh) / (nh - 1), nw)
+    uvs = np.stack([u, v], axis=1).astype(np.float32)
+    for arr in (pos, pinned, a, b, rest, kind, uvs):
+        arr.setflags(write=False)
+    kind_start = np.searchsorted(kind, np.arange(len(SPRING_KINDS) + 1)).astype(np.int64)
+    tris = grid_triangles(nw, nh)
+    for arr in (kind_start, tris):
+        arr.setflags(write=False)
+    return ClothModel(nw, nh, pos, pinned, a, b, rest, kind, kind_start, tris, uvs,
+                      spec.width, spec.height, spec.thickness)

@@ -1,0 +1,103 @@
+"""Meshes for drawing: vertex attributes of the cloth and of the colliders.
+
+Vertex layout shared by every mesh, float32, 14 per vertex:
+position (x, y, z, 1), normal (x, y, z, 0), tangent (x, y, z, 1), uv (u, v).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+FLOATS_PER_VERTEX = 14
+
+
+@dataclass
+class Mesh:
+    vertices: np.ndarray
+    """interleaved attributes, float32 (V, 14)"""
+    triangles: np.ndarray
+    """int32 (T, 3)"""
+    lines: np.ndarray | None = None
+    """int32 (L, 2) segments for the wireframe; None draws the triangles' edges"""
+
+
+def pack_vertices(pos: np.ndarray, normals: np.ndarray, tangents: np.ndarray, uvs: np.ndarray,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    n = pos.shape[0]
+    if out is None:
+        out = np.empty((n, FLOATS_PER_VERTEX), dtype=np.float32)
+    out[:, 0:3] = pos
+    out[:, 3] = 1.0
+    out[:, 4:7] = normals
+    out[:, 7] = 0.0
+    out[:, 8:11] = tangents
+    out[:, 11] = 1.0
+    out[:, 12:14] = uvs
+    return out
+
+
+def grid_tangents(pos: np.ndarray, nw: int, nh: int) -> np.ndarray:
+    """Direction of increasing u (the width index) on a row-major grid, unit length."""
+    g = pos.reshape(nh, nw, 3)
+    t = np.empty_like(g)
+    t[:, 1:-1] = g[:, 2:] - g[:, :-2]
+    t[:, 0] = g[:, 1] - g[:, 0]
+    t[:, -1] = g[:, -1] - g[:, -2]
+    t = t.reshape(-1, 3)
+    length = np.linalg.norm(t, axis=1, keepdims=True)
+    return t / np.maximum(length, 1e-12)
+
+
+def sphere_mesh(center, radius: float, lat: int, lon: int) -> Mesh:
+    """UV sphere with ``lat`` bands and ``lon`` segments; seams duplicated for the uvs."""
+    lat, lon = max(2, int(lat)), max(3, int(lon))
+    theta = np.linspace(0.0, math.pi, lat + 1)        # from +y down
+    phi = np.linspace(0.0, 2.0 * math.pi, lon + 1)
+    th, ph = np.meshgrid(theta, phi, indexing="ij")
+    normal = np.stack([np.sin(th) * np.cos(ph), np.cos(th), -np.sin(th) * np.sin(ph)], axis=-1).reshape(-1, 3)
+    tangent = np.stack([-np.sin(ph), np.zeros_like(ph), -np.cos(ph)], axis=-1).reshape(-1, 3)
+    uv = np.stack([ph / (2.0 * math.pi), 1.0 - th / math.pi], axis=-1).reshape(-1, 2)
+    pos = np.asarray(center, float) + radius * normal
+    idx = np.arange((lat + 1) * (lon + 1)).reshape(lat + 1, lon + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    tris = np.concatenate([np.stack([a, c, b], 1), np.stack([b, c, d], 1)]).astype(np.int32)
+    return Mesh(pack_vertices(pos, normal, tangent, uv), tris)
+
+
+def plane_mesh(point, normal, center, size: float, divisions: int = 32) -> Mesh:
+    """Square patch of an infinite plane, ``size`` wide around the projection of ``center``."""
+    n = np.asarray(normal, float)
+    n = n / np.linalg.norm(n)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    t = np.cross(helper, n)
+    t /= np.linalg.norm(t)
+    b = np.cross(n, t)
+    c = np.asarray(center, float)
+    c = c - np.dot(c - np.asarray(point, float), n) * n
+    s = np.linspace(-0.5, 0.5, divisions + 1)
+    uu, vv = np.meshgrid(s, s, indexing="xy")
+    pos = c + size * (uu.reshape(-1, 1) * t + vv.reshape(-1, 1) * b)
+    count = pos.shape[0]
+    uv = np.stack([uu.ravel() + 0.5, vv.ravel() + 0.5], axis=1) * 2.0  # texture tiles twice
+    idx = np.arange(count).reshape(divisions + 1, divisions + 1)
+    a, bb = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    cc, d = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    # wound so the face looks along +normal: (t, b) then n = t x b
+    tris = np.concatenate([np.stack([a, bb, cc], 1), np.stack([bb, d, cc], 1)]).astype(np.int32)
+    return Mesh(pack_vertices(pos, np.tile(n, (count, 1)), np.tile(t, (count, 1)), uv), tris)
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    """'16' -> (16, 16); '40,60' -> (40, 60): latitude bands, longitude segments."""
+    parts = [p for p in text.replace("x", ",").split(",") if p.strip()]
+    if not 1 <= len(parts) <= 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"expected N or LAT,LON (positive integers), got {text!r}")
+    lat = int(parts[0])
+    lon = int(parts[-1]) if len(parts) == 2 else lat
+    if lat < 2 or lon < 3:
+        raise ValueError(f"expected at least 2 latitude bands and 3 longitude segments, got {text!r}")
+    return lat, lon

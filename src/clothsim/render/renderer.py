@@ -1,0 +1,240 @@
+"""OpenGL renderer on moderngl: draws a cloth mesh and collider meshes with a shader.
+
+It takes vertex arrays, never springs or solvers. Offscreen it makes its own
+EGL context and a multisampled framebuffer; in a window it draws into
+whatever framebuffer the window has bound.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import RenderError
+from . import assets
+from .camera import Light, OrbitCamera
+from .geometry import FLOATS_PER_VERTEX, Mesh
+from .shaders import ShaderLibrary
+
+BACKGROUND = (0.11, 0.12, 0.15)
+COLLIDER_COLOR = (0.78, 0.78, 0.8)
+_ATTRS = (("in_position", "4f", 16), ("in_normal", "4f", 16), ("in_tangent", "4f", 16), ("in_uv", "2f", 8))
+
+
+@dataclass
+class DrawSettings:
+    """Everything about the look of a frame that a user may change."""
+
+    shader: str = "Phong"
+    color: tuple[float, float, float] = (0.80, 0.22, 0.20)
+    """cloth colour, linear RGB in [0, 1]"""
+    wire_color: tuple[float, float, float] = (0.95, 0.95, 0.95)
+    normal_scaling: float = 40.0
+    height_scaling: float = 0.02
+    """[m] of displacement at height 1 (also scales Bump)"""
+    ka: float = 0.1
+    kd: float = 1.0
+    ks: float = 0.5
+    p: float = 100.0
+    light: Light = field(default_factory=Light)
+    background: tuple[float, float, float] = BACKGROUND
+
+
+def create_context(samples_wanted: int = 4):
+    """A standalone OpenGL 3.3 context: EGL first (no display needed), then the default."""
+    import moderngl
+
+    errors = []
+    for kwargs in ({"backend": "egl"}, {}):
+        try:
+            return moderngl.create_standalone_context(require=330, **kwargs)
+        except Exception as exc:  # each backend fails in its own way
+            errors.append(f"{kwargs.get('backend', 'default')}: {exc}")
+    raise RenderError("cannot create an OpenGL 3.3 context (" + "; ".join(errors) +
+                      "); on Debian install libegl1 and libgl1-mesa-dri")
+
+
+class Renderer:
+    def __init__(self, ctx=None, size: tuple[int, int] = (800, 800), shaders: ShaderLibrary | None = None,
+                 samples: int = 4, texture: np.ndarray | None = None, height_map: np.ndarray | None = None,
+                 cubemap: dict[str, np.ndarray] | None = None) -> None:
+        self.offscreen = ctx is None
+        self.ctx = ctx if ctx is not None else create_context()
+        self.size = size
+        self.library = shaders or ShaderLibrary()
+        self._programs: dict[str, object] = {}
+        self._vaos: dict[tuple[str, int, str], object] = {}
+        self._cloth: Mesh | None = None
+        self._cloth_vbo = None
+        self._meshes: list[tuple[object, object, object, int]] = []  # vbo, tri ibo, edge ibo, id
+        self._textures = self._make_textures(texture, height_map, cubemap)
+        self.samples = 0
+        if self.offscreen:
+            self._make_framebuffers(size, samples)
+
+    # ------------------------------------------------------------ resources
+
+    def _make_framebuffers(self, size, samples) -> None:
+        ctx = self.ctx
+        self.samples = min(samples, ctx.max_samples) if samples > 1 else 0
+        self._fbo_ms = ctx.framebuffer(
+            color_attachments=[ctx.renderbuffer(size, 4, samples=self.samples)],
+            depth_attachment=ctx.depth_renderbuffer(size, samples=self.samples))
+        self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer(size, 4)],
+                                    depth_attachment=ctx.depth_renderbuffer(size))
+
+    def _make_textures(self, texture, height_map, cubemap) -> dict[str, object]:
+        ctx = self.ctx
+        color = texture if texture is not None else assets.plaid_texture()
+        height = height_map if height_map is not None else assets.weave_height()
+        faces = cubemap if cubemap is not None else assets.sky_environment()
+        out = {}
+        for name, img in (("u_texture_1", color), ("u_texture_2", height),
+                          ("u_texture_3", assets.weave_height(256, 8)), ("u_texture_4", color)):
+            img = np.ascontiguousarray(img[::-1])  # GL's first row is v = 0, at the bottom
+            tex = ctx.texture((img.shape[1], img.shape[0]), 3, img.tobytes())
+            tex.build_mipmaps()
+            tex.repeat_x = tex.repeat_y = True
+            out[name] = tex
+        size = faces["posx"].shape[0]
+        data = b"".join(np.ascontiguousarray(faces[f]).tobytes() for f in assets.CUBE_FACES)
+        cube = ctx.texture_cube((size, size), 3, data)
+        import moderngl
+        cube.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        out["u_texture_cubemap"] = cube
+        return out
+
+    def program(self, name: str):
+        if name not in self._programs:
+            self._programs[name] = self.library.compile(self.ctx, name)
+        return self._programs[name]
+
+    def set_cloth(self, mesh: Mesh) -> None:
+        """Topology of the cloth, uploaded once; ``update_cloth`` streams vertices each frame."""
+        self._release_vaos(0)
+        self._cloth = mesh
+        self._cloth_vbo = self.ctx.buffer(reserve=mesh.vertices.nbytes, dynamic=True)
+        self._cloth_vbo.write(mesh.vertices.astype(np.float32, copy=False).tobytes())
+        self._cloth_tris = self.ctx.buffer(mesh.triangles.astype(np.int32).tobytes())
+        self.set_cloth_lines(mesh.lines if mesh.lines is not None else _edges(mesh.triangles))
+
+    def set_cloth_lines(self, lines: np.ndarray) -> None:
+        """Segments the Wireframe shader draws (the enabled springs)."""
+        self._release_vaos(0, "lines")
+        data = np.ascontiguousarray(lines, dtype=np.int32)
+        self._cloth_lines = self.ctx.buffer(data.tobytes() if data.size else b"\0" * 8)
+        self._cloth_line_count = data.size
+
+    def update_cloth(self, vertices: np.ndarray) -> None:
+        """One buffer write per frame: the packed (N, 14) float32 vertices."""
+        self._cloth_vbo.write(vertices.astype(np.float32, copy=False).tobytes())
+
+    def set_colliders(self, meshes: list[Mesh]) -> None:
+        for vbo, tri, edge, ident in self._meshes:
+            self._release_vaos(ident)
+            for buf in (vbo, tri, edge):
+                buf.release()
+        self._meshes = []
+        for k, m in enumerate(meshes, start=1):
+            self._meshes.append((self.ctx.buffer(m.vertices.astype(np.float32).tobytes()),
+                                 self.ctx.buffer(m.triangles.astype(np.int32).tobytes()),
+                                 self.ctx.buffer(_edges(m.triangles).tobytes()), k))
+
+    def _release_vaos(self, ident: int, kind: str | None = None) -> None:
+        for key in [k for k in self._vaos if k[1] == ident and (kind is None or k[2] == kind)]:
+            self._vaos.pop(key).release()
+
+    def _vao(self, name: str, prog, ident: int, kind: str, vbo, ibo):
+        key = (name, ident, kind)
+        if key not in self._vaos:
+            fmt, names = [], []
+            for attr, f, nbytes in _ATTRS:
+                if attr in prog:
+                    fmt.append(f)
+                    names.append(attr)
+                else:
+                    fmt.append(f"{nbytes}x")
+            self._vaos[key] = self.ctx.vertex_array(prog, [(vbo, " ".join(fmt), *names)], ibo, index_element_size=4)
+        return self._vaos[key]
+
+    # ------------------------------------------------------------ drawing
+
+    def _set_uniforms(self, prog, camera: OrbitCamera, s: DrawSettings, aspect: float, color) -> None:
+        values = {
+            "u_model": np.eye(4), "u_view_projection": camera.view_projection(aspect),
+            "u_color": (*color, 1.0), "u_cam_pos": tuple(camera.position),
+            "u_light_pos": tuple(s.light.position), "u_light_intensity": tuple(s.light.intensity),
+            "u_normal_scaling": s.normal_scaling, "u_height_scaling": s.height_scaling,
+            "u_ka": s.ka, "u_kd": s.kd, "u_ks": s.ks, "u_p": s.p,
+        }
+        for name, value in values.items():
+            if name in prog:
+                if isinstance(value, np.ndarray):
+                    prog[name].write(value.T.astype("f4").tobytes())  # GLSL is column-major
+                else:
+                    prog[name].value = value
+        for unit, (name, tex) in enumerate(self._textures.items()):
+            if name in prog:
+                tex.use(location=unit)
+                prog[name].value = unit
+            size_name = name + "_size"
+            if size_name in prog:
+                prog[size_name].value = tuple(float(v) for v in tex.size)
+
+    def draw(self, camera: OrbitCamera, settings: DrawSettings, aspect: float | None = None) -> None:
+        """Draw the cloth and colliders into the bound framebuffer."""
+        import moderngl
+
+        ctx = self.ctx
+        aspect = aspect or self.size[0] / self.size[1]
+        prog = self.program(settings.shader)
+        wire = settings.shader == "Wireframe"
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        if self._cloth is not None:
+            self._set_uniforms(prog, camera, settings, aspect, settings.wire_color if wire else settings.color)
+            if wire:
+                if self._cloth_line_count:
+                    self._vao(settings.shader, prog, 0, "lines", self._cloth_vbo, self._cloth_lines).render(
+                        moderngl.LINES, vertices=self._cloth_line_count)
+            else:
+                self._vao(settings.shader, prog, 0, "tris", self._cloth_vbo, self._cloth_tris).render(
+                    moderngl.TRIANGLES)
+        if self._meshes:
+            self._set_uniforms(prog, camera, settings, aspect, settings.wire_color if wire else COLLIDER_COLOR)
+            for vbo, tri, edge, ident in self._meshes:
+                if wire:
+                    self._vao(settings.shader, prog, ident, "edges", vbo, edge).render(moderngl.LINES)
+                else:
+                    self._vao(settings.shader, prog, ident, "tris", vbo, tri).render(moderngl.TRIANGLES)
+
+    def render(self, camera: OrbitCamera, settings: DrawSettings) -> np.ndarray:
+        """Offscreen image, uint8 (H, W, 3), row 0 at the top."""
+        if not self.offscreen:
+            raise RenderError("render() needs an offscreen renderer; in a window call draw()")
+        self._fbo_ms.use()
+        self.ctx.clear(*settings.background, 1.0)
+        self.draw(camera, settings)
+        self.ctx.copy_framebuffer(self._fbo, self._fbo_ms)
+        w, h = self.size
+        data = self._fbo.read(components=3, alignment=1)
+        return np.frombuffer(data, dtype=np.uint8).reshape(h, w, 3)[::-1].copy()
+
+    def release(self) -> None:
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        if self.offscreen:
+            self.ctx.release()
+
+
+def _edges(triangles: np.ndarray) -> np.ndarray:
+    """Unique undirected edges of a triangle list, int32 (E, 2)."""
+    t = np.asarray(triangles)
+    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    e.sort(axis=1)
+    return np.unique(e, axis=0).astype(np.int32)
+
+
+__all__ = ["DrawSettings", "Renderer", "create_context", "FLOATS_PER_VERTEX"]

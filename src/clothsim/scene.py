@@ -1,0 +1,358 @@
+"""Scene files: the CS184 ClothSim JSON format plus clothsim's extensions.
+
+A scene is validated here once, completely, so that nothing downstream has
+to guess: every bad value becomes a :class:`SceneError` naming the file, the
+key path and what was expected. See ``shared/scene-format.md`` for the format.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import re
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import SceneError
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass
+class ClothSpec:
+    """The sheet of cloth: geometry, material and which springs act."""
+
+    width: float
+    """size along the width axis [m]"""
+    height: float
+    """size along the height axis [m]"""
+    num_width_points: int
+    num_height_points: int
+    thickness: float
+    """self-collision keeps points ``2*thickness`` apart [m]"""
+    orientation: int
+    """0 = horizontal (in the y=1 plane), 1 = vertical (in the z≈0 plane)"""
+    pinned: list[tuple[int, int]] = field(default_factory=list)
+    """grid indices ``(i, j)`` of point masses that never move"""
+    damping: float = 0.2
+    """percent of velocity removed per substep"""
+    density: float = 150.0
+    """g/cm² as in CS184; sets the mass of each point"""
+    ks: float = 5000.0
+    """spring constant [N/m]; bending springs use 0.2*ks"""
+    enable_structural: bool = True
+    enable_shearing: bool = True
+    enable_bending: bool = True
+
+
+@dataclass
+class SphereSpec:
+    origin: Vec3
+    radius: float
+    friction: float
+
+
+@dataclass
+class PlaneSpec:
+    point: Vec3
+    normal: Vec3
+    """unit normal (normalised on load)"""
+    friction: float
+
+
+@dataclass
+class SimulationSpec:
+    frames_per_sec: float = 90.0
+    simulation_steps: int = 30
+    """substeps per frame"""
+    gravity: Vec3 = (0.0, -9.8, 0.0)
+    """[m/s²]"""
+    self_collision: bool = True
+    seed: int = 0
+    """seeds the small z jitter of vertical cloth"""
+
+
+@dataclass
+class Scene:
+    cloth: ClothSpec
+    spheres: list[SphereSpec] = field(default_factory=list)
+    planes: list[PlaneSpec] = field(default_factory=list)
+    simulation: SimulationSpec = field(default_factory=SimulationSpec)
+    source: str | None = None
+    """where the scene came from, used in messages"""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scene as a JSON-ready dict that :func:`parse_scene` reads back."""
+        cloth = asdict(self.cloth)
+        cloth["pinned"] = [list(p) for p in self.cloth.pinned]
+        out: dict[str, Any] = {"cloth": cloth}
+        if self.spheres:
+            out["sphere"] = [asdict(s) for s in self.spheres]
+        if self.planes:
+            out["plane"] = [asdict(p) for p in self.planes]
+        out["simulation"] = asdict(self.simulation)
+        return json.loads(json.dumps(out))
+
+
+# --------------------------------------------------------------------------
+# validation helpers: each takes the key path so messages can name it
+
+
+class _Reader:
+    def __init__(self, source: str | None) -> None:
+        self.source = source
+
+    def fail(self, key: str | None, message: str) -> SceneError:
+        return SceneError(self.source, key, message)
+
+    def obj(self, value: Any, key: str) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(key, f"expected an object, got {_describe(value)}")
+        return value
+
+    def number(self, value: Any, key: str, *, lo: float | None = None, hi: float | None = None,
+               lo_open: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.fail(key, f"expected a number, got {_describe(value)}")
+        value = float(value)
+        if lo is not None and (value < lo or (lo_open and value == lo)):
+            raise self.fail(key, f"expected a number {'>' if lo_open else '>='} {lo:g}"
+                                 f"{'' if hi is None else f' and <= {hi:g}'}, got {value:g}")
+        if hi is not None and value > hi:
+            raise self.fail(key, f"expected a number <= {hi:g}, got {value:g}")
+        return value
+
+    def integer(self, value: Any, key: str, *, lo: int | None = None) -> int:
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"expected an integer, got {_describe(value)}")
+        if lo is not None and value < lo:
+            raise self.fail(key, f"expected an integer >= {lo}, got {value}")
+        return value
+
+    def boolean(self, value: Any, key: str) -> bool:
+        if not isinstance(value, bool):
+            raise self.fail(key, f"expected true or false, got {_describe(value)}")
+        return value
+
+    def vec3(self, value: Any, key: str) -> Vec3:
+        if not isinstance(value, list) or len(value) != 3:
+            raise self.fail(key, f"expected a list of 3 numbers, got {_describe(value)}")
+        x, y, z = (self.number(v, f"{key}[{k}]") for k, v in enumerate(value))
+        return (x, y, z)
+
+    def keys(self, obj: dict[str, Any], key: str, allowed: set[str], required: tuple[str, ...]) -> None:
+        for name in obj:
+            if name not in allowed:
+                raise self.fail(f"{key}.{name}", f"unknown key; expected one of {', '.join(sorted(allowed))}")
+        for name in required:
+            if name not in obj:
+                raise self.fail(f"{key}.{name}", "missing required key")
+
+
+def _describe(value: Any) -> str:
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f"the string {value!r}"
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    if isinstance(value, dict):
+        return "an object"
+    return repr(value)
+
+
+_CLOTH_REQUIRED = ("width", "height", "num_width_points", "num_height_points", "thickness", "orientation")
+_CLOTH_KEYS = set(_CLOTH_REQUIRED) | {"pinned", "damping", "density", "ks", "enable_structural",
+                                     "enable_shearing", "enable_bending"}
+_TOP_KEYS = {"cloth", "sphere", "plane", "simulation"}
+
+
+def _parse_cloth(r: _Reader, raw: Any) -> ClothSpec:
+    c = r.obj(raw, "cloth")
+    r.keys(c, "cloth", _CLOTH_KEYS, _CLOTH_REQUIRED)
+    nw = r.integer(c["num_width_points"], "cloth.num_width_points", lo=2)
+    nh = r.integer(c["num_height_points"], "cloth.num_height_points", lo=2)
+    orientation = r.integer(c["orientation"], "cloth.orientation")
+    if orientation not in (0, 1):
+        raise r.fail("cloth.orientation", f"expected 0 (horizontal) or 1 (vertical), got {orientation}")
+    pinned_raw = c.get("pinned", [])
+    if not isinstance(pinned_raw, list):
+        raise r.fail("cloth.pinned", f"expected a list of [i, j] pairs, got {_describe(pinned_raw)}")
+    pinned: list[tuple[int, int]] = []
+    for k, p in enumerate(pinned_raw):
+        key = f"cloth.pinned[{k}]"
+        if not isinstance(p, list) or len(p) != 2:
+            raise r.fail(key, f"expected a pair [i, j], got {_describe(p)}")
+        i = r.integer(p[0], key + "[0]")
+        j = r.integer(p[1], key + "[1]")
+        if not (0 <= i < nw and 0 <= j < nh):
+            raise r.fail(key, f"expected a point inside the {nw}x{nh} grid (i in 0..{nw - 1}, "
+                              f"j in 0..{nh - 1}), got [{i}, {j}]")
+        pinned.append((i, j))
+    return ClothSpec(
+        width=r.number(c["width"], "cloth.width", lo=0, lo_open=True),
+        height=r.number(c["height"], "cloth.height", lo=0, lo_open=True),
+        num_width_points=nw,
+        num_height_points=nh,
+        thickness=r.number(c["thickness"], "cloth.thickness", lo=0, lo_open=True),
+        orientation=orientation,
+        pinned=pinned,
+        damping=r.number(c.get("damping", 0.2), "cloth.damping", lo=0, hi=100),
+        density=r.number(c.get("density", 150.0), "cloth.density", lo=0, lo_open=True),
+        ks=r.number(c.get("ks", 5000.0), "cloth.ks", lo=0),
+        enable_structural=r.boolean(c.get("enable_structural", True), "cloth.enable_structural"),
+        enable_shearing=r.boolean(c.get("enable_shearing", True), "cloth.enable_shearing"),
+        enable_bending=r.boolean(c.get("enable_bending", True), "cloth.enable_bending"),
+    )
+
+
+def _as_list(raw: Any) -> list[tuple[str, Any]]:
+    """A collider key holds one object or (extension) a list of them."""
+    if isinstance(raw, list):
+        return [(f"[{k}]", v) for k, v in enumerate(raw)]
+    return [("", raw)]
+
+
+def _parse_spheres(r: _Reader, raw: Any) -> list[SphereSpec]:
+    out = []
+    for suffix, item in _as_list(raw):
+        key = "sphere" + suffix
+        s = r.obj(item, key)
+        r.keys(s, key, {"origin", "radius", "friction"}, ("origin", "radius", "friction"))
+        out.append(SphereSpec(
+            origin=r.vec3(s["origin"], key + ".origin"),
+            radius=r.number(s["radius"], key + ".radius", lo=0, lo_open=True),
+            friction=r.number(s["friction"], key + ".friction", lo=0, hi=1),
+        ))
+    return out
+
+
+def _parse_planes(r: _Reader, raw: Any) -> list[PlaneSpec]:
+    out = []
+    for suffix, item in _as_list(raw):
+        key = "plane" + suffix
+        p = r.obj(item, key)
+        r.keys(p, key, {"point", "normal", "friction"}, ("point", "normal", "friction"))
+        n = r.vec3(p["normal"], key + ".normal")
+        length = math.sqrt(sum(v * v for v in n))
+        if length == 0:
+            raise r.fail(key + ".normal", "expected a non-zero vector, got [0, 0, 0]")
+        out.append(PlaneSpec(
+            point=r.vec3(p["point"], key + ".point"),
+            normal=(n[0] / length, n[1] / length, n[2] / length),
+            friction=r.number(p["friction"], key + ".friction", lo=0, hi=1),
+        ))
+    return out
+
+
+def _parse_simulation(r: _Reader, raw: Any) -> SimulationSpec:
+    s = r.obj(raw, "simulation")
+    r.keys(s, "simulation", {"frames_per_sec", "simulation_steps", "gravity", "self_collision", "seed"}, ())
+    d = SimulationSpec()
+    return SimulationSpec(
+        frames_per_sec=r.number(s.get("frames_per_sec", d.frames_per_sec), "simulation.frames_per_sec",
+                                lo=0, lo_open=True),
+        simulation_steps=r.integer(s.get("simulation_steps", d.simulation_steps),
+                                   "simulation.simulation_steps", lo=1),
+        gravity=r.vec3(list(s.get("gravity", d.gravity)), "simulation.gravity"),
+        self_collision=r.boolean(s.get("self_collision", d.self_collision), "simulation.self_collision"),
+        seed=r.integer(s.get("seed", d.seed), "simulation.seed", lo=0),
+    )
+
+
+def parse_scene(data: Any, source: str | None = None) -> Scene:
+    """Validate a decoded JSON document; raise :class:`SceneError` on the first fault."""
+    r = _Reader(source)
+    if not isinstance(data, dict):
+        raise r.fail(None, f"expected a JSON object at the top level, got {_describe(data)}")
+    for name in data:
+        if name not in _TOP_KEYS:
+            raise r.fail(name, f"unknown top-level key; expected one of {', '.join(sorted(_TOP_KEYS))}")
+    if "cloth" not in data:
+        raise r.fail("cloth", "missing required key")
+    return Scene(
+        cloth=_parse_cloth(r, data["cloth"]),
+        spheres=_parse_spheres(r, data["sphere"]) if "sphere" in data else [],
+        planes=_parse_planes(r, data["plane"]) if "plane" in data else [],
+        simulation=_parse_simulation(r, data.get("simulation", {})),
+        source=source,
+    )
+
+
+def read_scene_json(path: str | Path) -> dict[str, Any]:
+    """Read the raw JSON of a scene file, turning I/O and syntax faults into SceneError."""
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SceneError(source, None, "no such file") from None
+    except IsADirectoryError:
+        raise SceneError(source, None, "expected a scene file, got a directory") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(source, None, f"cannot read: {exc}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SceneError(source, None, f"invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+
+
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+    """Load and validate a scene file, applying ``key=value`` overrides first."""
+    data = read_scene_json(path)
+    data = apply_overrides(data, overrides, str(path))
+    return parse_scene(data, str(path))
+
+
+_PATH_PART = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)")
+
+
+def apply_overrides(data: Any, overrides: list[str] | tuple[str, ...], source: str | None = None) -> Any:
+    """Return a copy of ``data`` with each ``dotted.key[0]=value`` set.
+
+    The value is read as JSON when it parses (``500``, ``true``, ``[0,-9.8,0]``)
+    and as a string otherwise, so validation later names the key if it is wrong.
+    """
+    data = copy.deepcopy(data)
+    for item in overrides:
+        if "=" not in item:
+            raise SceneError(source, None, f"--set expects key=value, got {item!r}")
+        key, text = item.split("=", 1)
+        key = key.strip()
+        try:
+            value: Any = json.loads(text)
+        except json.JSONDecodeError:
+            value = text
+        steps: list[str | int] = []
+        for part in key.split("."):
+            m = _PATH_PART.fullmatch(part)
+            if not m:
+                raise SceneError(source, key, "--set expects a dotted key such as cloth.ks or sphere[0].radius")
+            steps.append(m.group(1))
+            steps.extend(int(k) for k in re.findall(r"\[(\d+)\]", m.group(2)))
+        node = data
+        for depth, step in enumerate(steps[:-1]):
+            nxt = steps[depth + 1]
+            if isinstance(step, int):
+                if not isinstance(node, list) or step >= len(node):
+                    raise SceneError(source, key, "--set names a list element that the scene does not have")
+                node = node[step]
+            else:
+                if not isinstance(node, dict):
+                    raise SceneError(source, key, "--set names a key inside something that is not an object")
+                if step not in node:
+                    node[step] = [] if isinstance(nxt, int) else {}
+                node = node[step]
+        last = steps[-1]
+        if isinstance(last, int):
+            if not isinstance(node, list) or last >= len(node):
+                raise SceneError(source, key, "--set names a list element that the scene does not have")
+        elif not isinstance(node, dict):
+            raise SceneError(source, key, "--set names a key inside something that is not an object")
+        node[last] = value
+    return data

@@ -1,0 +1,10 @@
+"""Array kernels of one substep: integrate, collide, self-collide, constrain.
+
+Every kernel takes NumPy arrays and plain numbers and is compiled with Numba;
+:func:`clothsim.solver.step.advance` runs a whole frame of substeps in one call
+so that Python is entered once per frame, not once per substep.
+"""
+
+from .step import advance, pack_planes, pack_spheres
+
+__all__ = ["advance", "pack_planes", "pack_spheres"]
