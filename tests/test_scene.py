@@ -1,0 +1,136 @@
+"""Scene files: CS184 files load unchanged; every bad input names file, key and expectation."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from clothsim import SceneError, load_scene, parse_scene
+from clothsim.scene import apply_overrides
+
+from .conftest import SCENES, small_scene
+
+
+@pytest.mark.parametrize("name", ["pinned2", "pinned4", "sphere", "plane", "selfCollision"])
+def test_standard_scenes_load(name):
+    """each standard scene loads with the values the project promises"""
+    scene = load_scene(SCENES / f"{name}.json")
+    c = scene.cloth
+    assert (c.width, c.height, c.num_width_points, c.num_height_points) == (1.0, 1.0, 50, 50)
+    assert (c.damping, c.density, c.ks, c.thickness) == (0.2, 150.0, 5000.0, 0.0095)
+
+
+def test_standard_scene_contents():
+    """the collider and pin values in the standard scenes are the documented ones"""
+    assert load_scene(SCENES / "pinned2.json").cloth.pinned == [(0, 0), (49, 0)]
+    assert len(load_scene(SCENES / "pinned4.json").cloth.pinned) == 4
+    s = load_scene(SCENES / "sphere.json").spheres[0]
+    assert (s.origin, s.radius, s.friction) == ((0.5, 0.2, 0.5), 0.2, 0.3)
+    p = load_scene(SCENES / "plane.json").planes[0]
+    assert (p.point, p.normal, p.friction) == ((0, 0, 0), (0, 1, 0), 0.5)
+    sc = load_scene(SCENES / "selfCollision.json")
+    assert sc.cloth.orientation == 1 and sc.planes[0].normal == (0, 1, 0)
+
+
+def test_cs184_defaults_fill_in():
+    """a CS184 file without damping, density, ks, enable_* or pinned gets the CS184 defaults"""
+    data = small_scene()
+    for key in ("damping", "density", "ks", "pinned"):
+        del data["cloth"][key]
+    scene = parse_scene(data)
+    c = scene.cloth
+    assert (c.damping, c.density, c.ks, c.pinned) == (0.2, 150.0, 5000.0, [])
+    assert c.enable_structural and c.enable_shearing and c.enable_bending
+    assert scene.simulation.frames_per_sec == 90 and scene.simulation.simulation_steps == 30
+
+
+def test_plane_normal_is_normalised_and_lists_allowed():
+    """plane normals are normalised; sphere and plane accept lists (extension)"""
+    scene = parse_scene(small_scene(
+        plane={"point": [0, 0, 0], "normal": [0, 2, 0], "friction": 0.1},
+        sphere=[{"origin": [0, 0, 0], "radius": 1, "friction": 0},
+                {"origin": [1, 0, 0], "radius": 2, "friction": 1}]))
+    assert scene.planes[0].normal == (0.0, 1.0, 0.0)
+    assert [s.radius for s in scene.spheres] == [1.0, 2.0]
+
+
+BAD = [
+    ({"cloth": small_scene()["cloth"], "spheres": {}}, "spheres", "unknown top-level key"),
+    ({"plane": {}}, "cloth", "missing required key"),
+    (small_scene(cloth={"width": "wide"}), "cloth.width", "expected a number"),
+    (small_scene(cloth={"width": -1}), "cloth.width", "expected a number > 0"),
+    (small_scene(cloth={"num_width_points": 1}), "cloth.num_width_points", "expected an integer >= 2"),
+    (small_scene(cloth={"num_height_points": 2.5}), "cloth.num_height_points", "expected an integer"),
+    (small_scene(cloth={"orientation": 2}), "cloth.orientation", "expected 0 (horizontal) or 1"),
+    (small_scene(cloth={"damping": 101}), "cloth.damping", "<= 100"),
+    (small_scene(cloth={"ks": -5}), "cloth.ks", ">= 0"),
+    (small_scene(cloth={"enable_bending": "yes"}), "cloth.enable_bending", "expected true or false"),
+    (small_scene(cloth={"pinned": [[0, 0], [3, 3], [16, 0]]}), "cloth.pinned[2]", "inside the 16x16 grid"),
+    (small_scene(cloth={"pinned": [[0]]}), "cloth.pinned[0]", "expected a pair"),
+    (small_scene(cloth={"colour": 1}), "cloth.colour", "unknown key"),
+    (small_scene(sphere={"origin": [0, 0], "radius": 1, "friction": 0}), "sphere.origin",
+     "expected a list of 3 numbers"),
+    (small_scene(sphere={"origin": [0, 0, 0], "radius": 1}), "sphere.friction", "missing required key"),
+    (small_scene(sphere={"origin": [0, 0, 0], "radius": 1, "friction": 2}), "sphere.friction", "<= 1"),
+    (small_scene(plane={"point": [0, 0, 0], "normal": [0, 0, 0], "friction": 0}), "plane.normal",
+     "non-zero"),
+    (small_scene(simulation={"simulation_steps": 0}), "simulation.simulation_steps", ">= 1"),
+    (small_scene(simulation={"gravity": [0, "down", 0]}), "simulation.gravity[1]", "expected a number"),
+]
+for key in ("width", "height", "num_width_points", "num_height_points", "thickness", "orientation"):
+    missing = small_scene()
+    del missing["cloth"][key]
+    BAD.append((missing, f"cloth.{key}", "missing required key"))
+
+
+@pytest.mark.parametrize("data,key,expected", BAD, ids=[b[1] + ":" + b[2][:20] for b in BAD])
+def test_bad_scene_names_key(write_scene, data, key, expected):
+    """every invalid scene raises SceneError naming the file, the key path and what was expected"""
+    path = write_scene(data)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    err = info.value
+    assert err.key == key
+    assert err.source == str(path)
+    assert expected in str(err)
+    assert str(path) in str(err) and "\n" not in str(err)
+
+
+def test_invalid_json_gives_line_and_column(write_scene):
+    """a JSON syntax error reports its line and column"""
+    path = write_scene('{\n  "cloth": {\n    "width": 1,,\n  }\n}')
+    with pytest.raises(SceneError, match=r"invalid JSON at line 3, column 16"):
+        load_scene(path)
+
+
+def test_missing_file(tmp_path):
+    """a missing file is a SceneError, not an OSError traceback"""
+    with pytest.raises(SceneError, match="no such file"):
+        load_scene(tmp_path / "nope.json")
+
+
+def test_overrides_set_dotted_keys():
+    """--set style overrides reach nested keys and list elements, values parsed as JSON"""
+    data = small_scene(sphere=[{"origin": [0, 0, 0], "radius": 1, "friction": 0}])
+    out = apply_overrides(data, ["cloth.ks=500", "sphere[0].radius=0.25", "simulation.gravity=[0,-1,0]",
+                                 "cloth.enable_bending=false"])
+    scene = parse_scene(out)
+    assert scene.cloth.ks == 500 and scene.spheres[0].radius == 0.25
+    assert scene.simulation.gravity == (0, -1, 0) and not scene.cloth.enable_bending
+    assert data["cloth"]["ks"] == 5000  # the input is not modified
+
+
+def test_override_of_wrong_type_is_named(write_scene):
+    """an override with a bad value fails validation under its key"""
+    path = write_scene(small_scene())
+    with pytest.raises(SceneError) as info:
+        load_scene(path, ["cloth.ks=soft"])
+    assert info.value.key == "cloth.ks"
+
+
+def test_scene_round_trips_through_dict():
+    """to_dict gives JSON that parses back to the same scene"""
+    scene = load_scene(SCENES / "sphere.json")
+    again = parse_scene(json.loads(json.dumps(scene.to_dict())))
+    assert again.cloth == scene.cloth and again.spheres == scene.spheres
