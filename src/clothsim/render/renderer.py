@@ -7,6 +7,7 @@ whatever framebuffer the window has bound.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,7 +42,22 @@ class DrawSettings:
     background: tuple[float, float, float] = BACKGROUND
 
 
-def create_context(samples_wanted: int = 4):
+def _current(method):
+    """Run a GL method with this renderer's own context current.
+
+    Several offscreen renderers may live in one process (tests, sweeps) and GL
+    calls go to whichever context is current, so each entry point makes its
+    own current first. It is left current: glcontext's exit is not re-entrant.
+    """
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        if self.offscreen:
+            self.ctx.mglo.__enter__()
+        return method(self, *args, **kwargs)
+    return wrapper
+
+
+def create_context():
     """A standalone OpenGL 3.3 context: EGL first (no display needed), then the default."""
     import moderngl
 
@@ -68,10 +84,11 @@ class Renderer:
         self._cloth: Mesh | None = None
         self._cloth_vbo = None
         self._meshes: list[tuple[object, object, object, int]] = []  # vbo, tri ibo, edge ibo, id
-        self._textures = self._make_textures(texture, height_map, cubemap)
         self.samples = 0
         if self.offscreen:
+            self.ctx.mglo.__enter__()
             self._make_framebuffers(size, samples)
+        self._textures = self._make_textures(texture, height_map, cubemap)
 
     # ------------------------------------------------------------ resources
 
@@ -105,11 +122,13 @@ class Renderer:
         out["u_texture_cubemap"] = cube
         return out
 
+    @_current
     def program(self, name: str):
         if name not in self._programs:
             self._programs[name] = self.library.compile(self.ctx, name)
         return self._programs[name]
 
+    @_current
     def set_cloth(self, mesh: Mesh) -> None:
         """Topology of the cloth, uploaded once; ``update_cloth`` streams vertices each frame."""
         self._release_vaos(0)
@@ -119,6 +138,7 @@ class Renderer:
         self._cloth_tris = self.ctx.buffer(mesh.triangles.astype(np.int32).tobytes())
         self.set_cloth_lines(mesh.lines if mesh.lines is not None else _edges(mesh.triangles))
 
+    @_current
     def set_cloth_lines(self, lines: np.ndarray) -> None:
         """Segments the Wireframe shader draws (the enabled springs)."""
         self._release_vaos(0, "lines")
@@ -126,10 +146,12 @@ class Renderer:
         self._cloth_lines = self.ctx.buffer(data.tobytes() if data.size else b"\0" * 8)
         self._cloth_line_count = data.size
 
+    @_current
     def update_cloth(self, vertices: np.ndarray) -> None:
         """One buffer write per frame: the packed (N, 14) float32 vertices."""
         self._cloth_vbo.write(vertices.astype(np.float32, copy=False).tobytes())
 
+    @_current
     def set_colliders(self, meshes: list[Mesh]) -> None:
         for vbo, tri, edge, ident in self._meshes:
             self._release_vaos(ident)
@@ -182,6 +204,7 @@ class Renderer:
             if size_name in prog:
                 prog[size_name].value = tuple(float(v) for v in tex.size)
 
+    @_current
     def draw(self, camera: OrbitCamera, settings: DrawSettings, aspect: float | None = None) -> None:
         """Draw the cloth and colliders into the bound framebuffer."""
         import moderngl
@@ -209,6 +232,7 @@ class Renderer:
                 else:
                     self._vao(settings.shader, prog, ident, "tris", vbo, tri).render(moderngl.TRIANGLES)
 
+    @_current
     def render(self, camera: OrbitCamera, settings: DrawSettings) -> np.ndarray:
         """Offscreen image, uint8 (H, W, 3), row 0 at the top."""
         if not self.offscreen:
@@ -222,11 +246,12 @@ class Renderer:
         return np.frombuffer(data, dtype=np.uint8).reshape(h, w, 3)[::-1].copy()
 
     def release(self) -> None:
-        for vao in self._vaos.values():
-            vao.release()
-        self._vaos.clear()
         if self.offscreen:
-            self.ctx.release()
+            self.ctx.release()  # takes every object of the context with it
+        else:
+            for vao in self._vaos.values():
+                vao.release()
+        self._vaos.clear()
 
 
 def _edges(triangles: np.ndarray) -> np.ndarray:

@@ -1,0 +1,75 @@
+"""Simulation throughput: substeps/s and point updates/s per standard scene and size.
+
+Prints one JSON object per measurement. Single-threaded (the kernels are
+serial). Each measurement is the median of ``--repeats`` runs of the same
+stretch of simulated time from the scene's start, after a warm-up that
+compiles the kernels.
+
+    python benchmarks/bench_sim.py [--sizes 50,100,200] [--scenes pinned2,sphere] [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import emit, machine, peak_rss_mib  # noqa: E402
+
+from clothsim import Simulation  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ["pinned2", "pinned4", "sphere", "plane", "selfCollision"]
+SECONDS = {50: 1.0, 100: 0.4, 200: 0.1}
+
+
+def sized(scene: str, n: int) -> list[str]:
+    """Overrides that resize a standard scene to n x n, keeping its pins at the corners."""
+    out = [f"cloth.num_width_points={n}", f"cloth.num_height_points={n}"]
+    if scene == "pinned2":
+        out.append(f"cloth.pinned=[[0,0],[{n - 1},0]]")
+    elif scene == "pinned4":
+        out.append(f"cloth.pinned=[[0,0],[{n - 1},0],[0,{n - 1}],[{n - 1},{n - 1}]]")
+    return out
+
+
+def measure(scene: str, n: int, seconds: float, self_collision: bool, repeats: int) -> float:
+    rates = []
+    for _ in range(repeats):
+        sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n))
+        sim.params.self_collision = self_collision and sim.params.self_collision
+        frames = max(1, round(seconds * sim.params.frames_per_sec))
+        start = time.perf_counter()
+        for _ in range(frames):
+            sim.step()
+        rates.append(frames * sim.params.simulation_steps / (time.perf_counter() - start))
+    return statistics.median(rates)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", default="50,100,200")
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args()
+    info = machine()
+    warm = Simulation.from_file(ROOT / "scenes" / "pinned2.json")
+    warm.step()  # compile (or load cached) kernels outside the timings
+    for n in (int(s) for s in args.sizes.split(",")):
+        for scene in args.scenes.split(","):
+            seconds = SECONDS.get(n, 0.1)
+            with_self = measure(scene, n, seconds, True, args.repeats)
+            without = measure(scene, n, seconds, False, args.repeats)
+            emit({"bench": "simulate", "scene": scene, "points": n * n, "grid": f"{n}x{n}",
+                  "simulated_s": seconds, "substeps_per_s": round(with_self, 1),
+                  "point_updates_per_s": round(with_self * n * n),
+                  "substeps_per_s_no_self_collision": round(without, 1),
+                  "realtime_factor": round(with_self / 2700.0, 3),
+                  "peak_rss_mib": round(peak_rss_mib(), 1), **info})
+
+
+if __name__ == "__main__":
+    main()
