@@ -9,7 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from . import __version__
-from .errors import ClothsimError
+from .errors import ClothsimError, UsageError
 from .outputs import check_writable
 from .simulation import Simulation
 
@@ -23,6 +23,8 @@ def _add_scene_args(p: argparse.ArgumentParser, seconds: float) -> None:
     p.add_argument("--no-self-collision", action="store_true", help="turn self-collision off")
     p.add_argument("--overwrite", action="store_true", help="replace output files that already exist")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--export-sequence", metavar="DIR", help="write one OBJ per frame into DIR")
+    p.add_argument("--export-npz", metavar="OUT.npz", help="write the whole trajectory as NumPy arrays")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,6 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
     from .render.cli import add_render_parser
     add_render_parser(sub, _add_scene_args)
+    from .sweep.cli import add_sweep_parser
+    add_sweep_parser(sub)
     return parser
 
 
@@ -74,11 +78,22 @@ def summary(sim: Simulation, frames: int, wall: float) -> str:
             f"{rate:,.0f} substeps/s")
 
 
+def make_recorder(args: argparse.Namespace, sim: Simulation):
+    from .recording import FrameRecorder
+
+    return FrameRecorder(sim, args.export_sequence, args.export_npz, args.overwrite)
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    if args.seconds < 0:
+        raise UsageError(f"--seconds: expected a number >= 0, got {args.seconds:g}")
     if args.export:
         check_writable(args.export, args.overwrite)
     sim = load_simulation(args)
-    frames, wall = run_with_progress(sim, args.seconds, not args.no_progress)
+    recorder = make_recorder(args, sim)
+    frames, wall = run_with_progress(sim, args.seconds, not args.no_progress,
+                                     recorder if recorder.active else None)
+    recorder.finish(sim)
     if args.export:
         sim.export_obj(args.export)
     print(summary(sim, frames, wall) + (f"; wrote {args.export}" if args.export else ""))

@@ -32,3 +32,7 @@ class SimulationError(ClothsimError):
 
 class RenderError(ClothsimError):
     """A shader did not compile or an image asset could not be read."""
+
+
+class UsageError(ClothsimError):
+    """A command-line value that cannot be used as given."""

@@ -8,15 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ClothsimError
+from ..errors import UsageError
 from ..outputs import atomic_path, check_writable
 
 VIDEO_SUFFIXES = {".mp4", ".gif"}
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg"}
-
-
-class UsageError(ClothsimError):
-    """A command-line value that cannot be used as given."""
 
 
 def _floats(text: str, count: int, what: str) -> tuple[float, ...]:
@@ -118,7 +114,7 @@ def _validate(args: argparse.Namespace) -> str:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from ..cli import load_simulation, run_with_progress, summary
+    from ..cli import load_simulation, make_recorder, run_with_progress, summary
     from .scene_view import SimulationView, default_camera
     from .sheet import contact_sheet
 
@@ -131,6 +127,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     for name in names:  # compile first: a broken shader fails before a long simulation
         renderer.program(name)
     view = SimulationView(renderer, sim, args.sphere_res_pair)
+    recorder = make_recorder(args, sim)
 
     def camera(fixed: bool):
         cam = default_camera(sim, fixed=fixed)
@@ -139,9 +136,13 @@ def cmd_render(args: argparse.Namespace) -> int:
         return cam
 
     if suffix in VIDEO_SUFFIXES:
-        return _render_video(args, sim, view, settings, camera(fixed=True))
+        code = _render_video(args, sim, view, settings, camera(fixed=True), recorder)
+        recorder.finish(sim)
+        return code
 
-    frames, wall = run_with_progress(sim, args.seconds, not args.no_progress)
+    frames, wall = run_with_progress(sim, args.seconds, not args.no_progress,
+                                     recorder if recorder.active else None)
+    recorder.finish(sim)
     view.sync()
     cam = camera(fixed=False)
     images = []
@@ -161,7 +162,7 @@ def _save_image(path: str, image: np.ndarray) -> None:
         Image.fromarray(image).save(tmp, format="JPEG" if Path(path).suffix.lower() in {".jpg", ".jpeg"} else "PNG")
 
 
-def _render_video(args, sim, view, settings, cam) -> int:
+def _render_video(args, sim, view, settings, cam, recorder) -> int:
     import time
 
     import imageio.v2 as imageio
@@ -183,6 +184,8 @@ def _render_video(args, sim, view, settings, cam) -> int:
             bar.update(1)
             for frame in range(1, sim_frames + 1):
                 sim.step()
+                if recorder.active:
+                    recorder(sim)
                 if frame % every == 0:
                     view.sync()
                     writer.append_data(view.renderer.render(cam, settings))

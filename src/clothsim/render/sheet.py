@@ -24,7 +24,7 @@ def contact_sheet(images: list[np.ndarray], labels: list[str], columns: int | No
     if not images:
         raise ValueError("a contact sheet needs at least one image")
     h, w = images[0].shape[:2]
-    columns = columns or math.ceil(math.sqrt(len(images)))
+    columns = columns or (len(images) if len(images) <= 4 else math.ceil(math.sqrt(len(images))))
     rows = math.ceil(len(images) / columns)
     font_size = max(12, w // 18)
     strip = int(font_size * 1.8)

@@ -1,0 +1,130 @@
+"""The sweep's output folder: per-run PNG/OBJ, records, runs.csv, sheet.png.
+
+A run is done when ``records/NAME.json`` holds its digest; re-running skips
+it. Files the sweep did not write, or wrote for different settings, are
+never replaced without ``--force``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..outputs import OutputError, write_atomic
+from .plan import RunSpec
+from .runner import RunResult
+
+METRIC_COLUMNS = ["lowest_y", "sag", "max_stretch", "mean_speed", "at_rest", "frames", "wall_s"]
+MANIFEST = "sweep.json"
+
+
+class SweepDir:
+    def __init__(self, path: str | Path, force: bool = False) -> None:
+        self.path = Path(path)
+        self.force = force
+        if self.path.exists() and not self.path.is_dir():
+            raise OutputError(f"{self.path}: exists and is not a folder")
+        self.records = self.path / "records"
+
+    def _record_path(self, spec: RunSpec) -> Path:
+        return self.records / f"{spec.name}.json"
+
+    def load_record(self, spec: RunSpec) -> dict[str, Any] | None:
+        try:
+            return json.loads(self._record_path(spec).read_text())
+        except (OSError, json.JSONDecodeError):
+            return None
+
+    def plan(self, specs: list[RunSpec]) -> tuple[list[RunSpec], list[RunSpec]]:
+        """Split into (to run, already done); raise before anything runs on a conflict."""
+        todo, done, conflicts = [], [], []
+        ours = (self.path / MANIFEST).is_file()
+        for name in ("runs.csv", "sheet.png"):
+            if (self.path / name).exists() and not ours and not self.force:
+                conflicts.append(self.path / name)
+        for spec in specs:
+            rec = self.load_record(spec)
+            if rec is not None and rec.get("digest") == spec.digest() and not self.force:
+                done.append(spec)
+                continue
+            if not self.force:
+                if rec is not None:
+                    conflicts.append(self._record_path(spec))
+                conflicts += [p for p in (self.path / f"{spec.name}.png", self.path / f"{spec.name}.obj")
+                              if p.exists()]
+            todo.append(spec)
+        if conflicts:
+            shown = ", ".join(str(p) for p in conflicts[:3]) + (" ..." if len(conflicts) > 3 else "")
+            raise OutputError(f"{self.path}: holds files of other runs ({shown}); "
+                              "pass --force to redo them or choose another folder")
+        return todo, done
+
+    def save(self, result: RunResult) -> None:
+        """Write one finished run: images first, the record (the 'done' mark) last."""
+        self.records.mkdir(parents=True, exist_ok=True)
+        spec = result.spec
+        if result.png is not None:
+            write_atomic(self.path / f"{spec.name}.png", lambda t: t.write_bytes(result.png))
+        if result.obj is not None:
+            write_atomic(self.path / f"{spec.name}.obj", lambda t: t.write_text(result.obj))
+        record = {"digest": spec.digest(), "name": spec.name, "values": dict(spec.values),
+                  **result.record, "error": result.error}
+        write_atomic(self._record_path(spec), lambda t: t.write_text(json.dumps(record, indent=1)))
+
+    def write_summary(self, specs: list[RunSpec], source: str) -> None:
+        """runs.csv and sheet.png over every planned run, and the manifest."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        keys = [k for k, _ in specs[0].values] if specs else []
+        rows = []
+        for spec in specs:
+            rec = self.load_record(spec) or {"error": "not run"}
+            row = {"run": spec.index, "name": spec.name, **{k: v for k, v in spec.values}}
+            for col in METRIC_COLUMNS:
+                row[col] = _cell(rec.get(col))
+            row["error"] = rec.get("error") or ""
+            row["png"] = f"{spec.name}.png" if (self.path / f"{spec.name}.png").exists() else ""
+            row["obj"] = f"{spec.name}.obj" if (self.path / f"{spec.name}.obj").exists() else ""
+            rows.append(row)
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=["run", "name", *keys, *METRIC_COLUMNS, "error", "png", "obj"])
+        writer.writeheader()
+        writer.writerows(rows)
+        write_atomic(self.path / "runs.csv", lambda t: t.write_text(buf.getvalue()))
+        self._write_sheet(specs)
+        manifest = {"scene": source, "runs": [s.name for s in specs]}
+        write_atomic(self.path / MANIFEST, lambda t: t.write_text(json.dumps(manifest, indent=1)))
+
+    def _write_sheet(self, specs: list[RunSpec]) -> None:
+        from PIL import Image
+
+        from ..render.sheet import contact_sheet
+
+        images, labels = [], []
+        size = specs[0].size if specs else (64, 64)
+        for spec in specs:
+            png = self.path / f"{spec.name}.png"
+            rec = self.load_record(spec) or {}
+            if png.exists() and not rec.get("error"):
+                images.append(np.asarray(Image.open(png).convert("RGB")))
+                labels.append(spec.label)
+            else:
+                images.append(np.full((size[1], size[0], 3), (60, 20, 24), np.uint8))
+                labels.append(spec.label + "  FAILED")
+        sheet = contact_sheet(images, labels)
+
+        def save(tmp: Path) -> None:
+            Image.fromarray(sheet).save(tmp, format="PNG")
+        write_atomic(self.path / "sheet.png", save)
+
+
+def _cell(value: Any) -> Any:
+    """CSV cell: floats to 9 significant digits so runs compare across machines"""
+    if isinstance(value, float):
+        return "" if math.isnan(value) else f"{value:.9g}"
+    return "" if value is None else value

@@ -1,0 +1,113 @@
+"""Running the planned runs: in local worker processes or on a Dask cluster."""
+
+from __future__ import annotations
+
+import io
+import multiprocessing
+import time
+import traceback
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from typing import Any
+
+from .plan import RunSpec
+
+
+@dataclass
+class RunResult:
+    spec: RunSpec
+    record: dict[str, Any] = field(default_factory=dict)
+    """measured values (clothsim.metrics) plus frames and wall time"""
+    png: bytes | None = None
+    obj: str | None = None
+    error: str | None = None
+
+
+def run_one(spec: RunSpec) -> RunResult:
+    """Simulate and render one run headless with its own GL context.
+
+    Never raises for a bad run: the error is returned, so the sweep goes on.
+    """
+    from ..errors import ClothsimError
+    from ..export import obj_text
+    from ..metrics import measure
+    from ..scene import apply_overrides, parse_scene
+    from ..simulation import Simulation
+
+    start = time.perf_counter()
+    result = RunResult(spec)
+    try:
+        scene = parse_scene(apply_overrides(spec.scene, spec.overrides, spec.source), spec.source)
+        sim = Simulation(scene)
+        frames = sim.run(spec.seconds)
+        result.record = {**measure(sim), "frames": frames}
+        result.obj = obj_text(sim.positions, sim.normals, sim.model.uvs, sim.model.triangles)
+        result.png = _render_png(sim, spec)
+    except ClothsimError as exc:
+        result.error = str(exc)
+    except Exception as exc:  # a worker must report, not die: keep the last line of the trace
+        result.error = f"{type(exc).__name__}: {exc} ({traceback.format_exc().strip().splitlines()[-1]})"
+    result.record["wall_s"] = round(time.perf_counter() - start, 3)
+    return result
+
+
+def _render_png(sim, spec: RunSpec) -> bytes:
+    from PIL import Image
+
+    from ..render.renderer import DrawSettings, Renderer
+    from ..render.scene_view import SimulationView, default_camera
+
+    renderer = Renderer(size=spec.size)
+    try:
+        view = SimulationView(renderer, sim)
+        view.sync()
+        image = renderer.render(default_camera(sim, fixed=True), DrawSettings(shader=spec.shader))
+    finally:
+        renderer.release()
+    buf = io.BytesIO()
+    Image.fromarray(image).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _local(specs: list[RunSpec], workers: int) -> Iterator[RunResult]:
+    if workers <= 1:
+        for spec in specs:
+            yield run_one(spec)
+        return
+    # spawn: a fresh interpreter per worker, no GL or thread state inherited by fork
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        futures = [pool.submit(run_one, spec) for spec in specs]
+        for fut in as_completed(futures):
+            yield fut.result()
+
+
+def _dask(specs: list[RunSpec], scheduler: str) -> Iterator[RunResult]:
+    from distributed import Client, as_completed as dask_completed
+
+    from ..errors import ClothsimError
+
+    try:
+        client = Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError) as exc:
+        raise ClothsimError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({exc})") from None
+    try:
+        futures = client.map(run_one, specs, pure=False)
+        for fut in dask_completed(futures):
+            yield fut.result()
+    finally:
+        client.close()
+
+
+def run_sweep(specs: Iterable[RunSpec], workers: int = 1, scheduler: str | None = None,
+              on_result: Callable[[RunResult], None] | None = None) -> list[RunResult]:
+    """Run every spec; call ``on_result`` as each finishes; return results in plan order."""
+    specs = list(specs)
+    source = _dask(specs, scheduler) if scheduler else _local(specs, workers)
+    results = []
+    for result in source:
+        if on_result is not None:
+            on_result(result)
+        results.append(result)
+    return sorted(results, key=lambda r: r.spec.index)
