@@ -42,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_render_parser(sub, _add_scene_args)
     from .sweep.cli import add_sweep_parser
     add_sweep_parser(sub)
+    from .viewer.cli import add_view_parser
+    add_view_parser(sub)
     return parser
 
 

@@ -130,6 +130,8 @@ class Simulation:
         self._runaway2 = (RUNAWAY_FACTOR * size) ** 2
         self._cell_size = 3.0 * self.model.width / self.model.num_width_points
         self._normals: np.ndarray | None = None
+        self._handle = -1
+        self._handle_pos = np.zeros(3)
 
     @classmethod
     def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Simulation:
@@ -167,6 +169,24 @@ class Simulation:
         """Put the cloth back at its start; the parameters keep their current values."""
         self.state = State.at_rest(self.model)
         self._normals = None
+        self.release()
+
+    def grab(self, index: int, target) -> None:
+        """Hold point ``index`` at ``target`` [m] during the following steps (a mouse pull)."""
+        if not 0 <= index < self.model.num_points:
+            raise IndexError(f"point {index} is not in the cloth (0..{self.model.num_points - 1})")
+        if self.model.pinned[index]:
+            return
+        self._handle = int(index)
+        self._handle_pos = np.asarray(target, dtype=np.float64).copy()
+
+    def release(self) -> None:
+        self._handle = -1
+
+    @property
+    def grabbed(self) -> int:
+        """index of the held point, or -1"""
+        return self._handle
 
     # ------------------------------------------------------------------ stepping
 
@@ -184,7 +204,7 @@ class Simulation:
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
             bool(p.self_collision), m.thickness, self._cell_size,
             s.bucket_start, s.order, s.sorted_pos, s.sorted_rest, s.sorted_cell, s.push, s.count,
-            self._center)
+            self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None

@@ -31,13 +31,13 @@ def cloth_mesh(sim: Simulation) -> Mesh:
 
 
 def reach_box(sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
-    """Where the cloth can be: its start box and one cloth size below it, cut at
-    floors, plus the spheres. Fixed per scene, so every frame and every run of a
+    """Where the cloth can be: its start box and 1.25 cloth sizes below it, cut
+    at floors, plus the spheres. Fixed per scene, so every frame and every run of a
     sweep is framed alike."""
     rest = sim.model.rest_positions
     size = max(sim.model.width, sim.model.height)
     lo, hi = rest.min(axis=0).copy(), rest.max(axis=0).copy()
-    lo[1] -= size
+    lo[1] -= 1.25 * size
     for p in sim.planes:
         if p.normal[1] > 0.9:
             lo[1] = max(lo[1], p.point[1])

@@ -49,21 +49,33 @@ def _farthest(pos, center):
 def advance(pos, last, acc, rest, pinned, spring_a, spring_b, spring_rest, kind_start,
             k_over_m, enabled, gravity, keep, dt, substeps, simulation_steps, spheres, planes,
             self_collision, thickness, cell_size, bucket_start, order, sorted_pos, sorted_rest, sorted_cell,
-            push, count, center):
+            push, count, handle, handle_pos, center):
     """Run ``substeps`` substeps in place; return the largest squared distance of a
     point from ``center`` afterwards (inf when the state is no longer finite).
 
     Order per substep, as in the CS184 course code: forces, Verlet, self-collision,
-    sphere and plane collisions, then the Provot pass.
+    sphere and plane collisions, then the Provot pass. ``handle`` (or -1) is a
+    point held at ``handle_pos`` by the user's grab: it moves kinematically.
     """
     dt2 = dt * dt
     for _ in range(substeps):
         accumulate_accelerations(pos, acc, gravity, spring_a, spring_b, spring_rest, kind_start, k_over_m)
         verlet(pos, last, acc, pinned, keep, dt2)
+        if handle >= 0:
+            _hold(pos, handle, handle_pos)
         if self_collision:
             self_collide(pos, rest, pinned, thickness, cell_size, simulation_steps,
                          bucket_start, order, sorted_pos, sorted_rest, sorted_cell, push, count)
         collide_spheres(pos, last, pinned, spheres)
         collide_planes(pos, last, pinned, planes)
         provot(pos, pinned, spring_a, spring_b, spring_rest, kind_start, enabled)
+        if handle >= 0:
+            _hold(pos, handle, handle_pos)
     return _farthest(pos, center)
+
+
+@njit(cache=True, inline="always")
+def _hold(pos, handle, target):
+    pos[handle, 0] = target[0]
+    pos[handle, 1] = target[1]
+    pos[handle, 2] = target[2]

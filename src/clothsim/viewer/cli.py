@@ -1,0 +1,61 @@
+"""``clothsim view``: the interactive window, or a scripted run of it."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_view_parser(sub) -> None:
+    p = sub.add_parser("view", help="open the interactive viewer",
+                       description="Simulate and draw a scene in a window, with a panel for every parameter.")
+    p.add_argument("scene", help="scene file (CS184 ClothSim JSON)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--no-self-collision", action="store_true")
+    p.add_argument("--shader", default="Phong")
+    p.add_argument("--shaders", action="append", default=[], metavar="DIR",
+                   help="folder of Name.vert/Name.frag files searched before the built-in ones")
+    p.add_argument("--size", default="1280x800", help="window size WIDTHxHEIGHT")
+    p.add_argument("--frames", type=int, metavar="N", help="scripted: run N frames, then exit")
+    p.add_argument("--keys", default="", help='scripted: keys pressed before frames 1, 2, ... e.g. "p,n,r"')
+    p.add_argument("--screenshot", metavar="OUT.png", help="scripted: save the last frame, panel included")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing screenshot file")
+    p.set_defaults(func=cmd_view)
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    from ..errors import UsageError
+    from ..outputs import check_writable
+    from ..render.cli import _size
+    from ..render.shaders import ShaderLibrary
+    from ..simulation import Simulation
+    from .app import KEY_NAMES, ViewerApp, require_display
+
+    keys = [k.strip().lower() for k in args.keys.split(",") if k.strip()]
+    for k in keys:
+        if k not in KEY_NAMES:
+            raise UsageError(f"--keys: unknown key {k!r}; expected one of {', '.join(KEY_NAMES)}")
+    if args.frames is not None and args.frames < 1:
+        raise UsageError(f"--frames: expected at least 1, got {args.frames}")
+    if (args.keys or args.screenshot) and args.frames is None:
+        raise UsageError("--keys and --screenshot need --frames N (scripted mode)")
+    if args.screenshot:
+        check_writable(args.screenshot, args.overwrite)
+    require_display()
+    sim = Simulation.from_file(args.scene, args.overrides)
+    if args.no_self_collision:
+        sim.params.self_collision = False
+    library = ShaderLibrary(args.shaders)
+    if args.shader not in library.names():
+        raise UsageError(f"--shader: unknown shader {args.shader!r}; available: {', '.join(library.names())}")
+    app = ViewerApp(sim, size=_size(args.size), shaders=library, shader=args.shader)
+    try:
+        if args.frames is None:
+            app.run()
+        else:
+            app.run_script(args.frames, keys, args.screenshot)
+            print(f"{args.frames} frames, t = {app.sim.time:.2f} s" +
+                  (f"; wrote {args.screenshot}" if args.screenshot else ""))
+    finally:
+        if args.frames is not None:
+            app.close()
+    return 0

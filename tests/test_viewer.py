@@ -1,0 +1,152 @@
+"""The viewer in a real window on a virtual X display (Xvfb), driven like a user would."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from clothsim import Simulation
+
+from .conftest import SCENES
+
+XVFB = shutil.which("Xvfb")
+if XVFB is None and not os.environ.get("CI"):
+    pytest.skip("Xvfb is not installed (apt-get install xvfb); CI installs it", allow_module_level=True)
+
+
+@pytest.fixture(scope="module")
+def display():
+    """a private Xvfb display for this module"""
+    num = 90 + os.getpid() % 100
+    proc = subprocess.Popen([XVFB, f":{num}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 20
+    while not os.path.exists(f"/tmp/.X11-unix/X{num}") and time.time() < deadline:
+        time.sleep(0.1)
+    old = os.environ.get("DISPLAY")
+    os.environ["DISPLAY"] = f":{num}"
+    yield f":{num}"
+    if old is None:
+        os.environ.pop("DISPLAY", None)
+    else:
+        os.environ["DISPLAY"] = old
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def app(display):
+    from clothsim.viewer.app import ViewerApp
+
+    a = ViewerApp(Simulation.from_file(SCENES / "pinned2.json"), size=(640, 480))
+    yield a
+    a.close()
+
+
+def frames(app, n):
+    for _ in range(n):
+        app.frame(realtime=False)
+        app.swap()
+
+
+def test_runs_frames(app):
+    """each displayed frame advances the simulation by one frame"""
+    start = app.sim.frame
+    frames(app, 5)
+    assert app.sim.frame == start + 5
+    assert app.sim.time == pytest.approx(app.sim.frame / 90)
+
+
+def test_pause_step_and_reset(app):
+    """P freezes the cloth, N steps one frame while paused, R puts it back at the start"""
+    frames(app, 3)
+    app.press("p")
+    before = app.sim.positions.copy()
+    frames(app, 3)
+    assert np.array_equal(app.sim.positions, before)
+    app.press("n")
+    frames(app, 2)
+    assert not np.array_equal(app.sim.positions, before) and app.sim.frame > 0
+    app.press("p")
+    app.press("r")
+    assert np.array_equal(app.sim.positions, app.sim.model.rest_positions)
+    frames(app, 1)
+    assert app.sim.frame == 1
+
+
+def test_shader_key_changes_pixels(app, tmp_path):
+    """pressing 2 switches to the Normal shader and the image changes"""
+    app.press("1" if app.settings.shader != "Phong" else "4")  # Phong is the 4th built-in
+    frames(app, 2)
+    a = np.asarray(Image.open(app.save_screenshot(tmp_path / "a.png")))
+    app.press("2")
+    assert app.settings.shader == "Normal"
+    app.press("p")
+    frames(app, 1)
+    b = np.asarray(Image.open(app.save_screenshot(tmp_path / "b.png")))
+    app.press("p")
+    assert np.abs(a.astype(int) - b.astype(int)).sum(axis=2).astype(bool).mean() > 0.02
+
+
+def test_grab_pulls_point_toward_target(app):
+    """shift-drag: the grabbed point follows the cursor onto a plane facing the camera"""
+    from clothsim.viewer import picking
+
+    app.press("r")
+    frames(app, 20)
+    size = app.window_size
+    vp = app.camera.view_projection(size[0] / size[1])
+    index = app.sim.model.index(25, 30)
+    px, _ = picking.project(app.sim.positions[index:index + 1], vp, size)
+    grabbed = app.grab_at(tuple(px[0]))
+    assert grabbed >= 0 and app.sim.grabbed == grabbed
+    start = app.sim.positions[grabbed].copy()
+    target_px = (px[0][0] + 60, px[0][1] - 80)
+    app.drag_to(target_px)
+    frames(app, 10)
+    now, _ = picking.project(app.sim.positions[grabbed:grabbed + 1], vp, size)
+    assert np.linalg.norm(now[0] - np.array(target_px)) < 2.0  # under the cursor
+    assert np.linalg.norm(app.sim.positions[grabbed] - start) > 0.05
+    app._on_release(0, 0, app.wnd.mouse.left)
+    assert app.sim.grabbed == -1
+
+
+def test_screenshot_shows_cloth_and_panel(app, tmp_path):
+    """the screenshot is the window: the panel on the left, the cloth in the view"""
+    app.press("r")
+    app.set_shader("Phong")
+    frames(app, 10)
+    img = np.asarray(Image.open(app.save_screenshot(tmp_path / "s.png")))
+    assert img.shape == (480, 640, 3)
+    bg = np.array(app.settings.background) * 255
+    differs = np.abs(img.astype(float) - bg).sum(axis=2) > 20
+    assert differs[:, :300].mean() > 0.3      # the panel
+    assert differs[:, 340:].mean() > 0.03     # the cloth
+    red = (img[:, 340:, 0].astype(int) - img[:, 340:, 2]) > 40
+    assert red.sum() > 500                    # the red cloth itself
+
+
+def test_scripted_cli(display, tmp_path):
+    """clothsim view --frames N --keys --screenshot runs, saves and exits 0"""
+    out = tmp_path / "v.png"
+    r = subprocess.run([sys.executable, "-m", "clothsim", "view", str(SCENES / "sphere.json"), "--frames", "12",
+                        "--keys", "p,n,n", "--screenshot", str(out), "--size", "480x360"],
+                       capture_output=True, text=True, env={**os.environ, "DISPLAY": display}, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "t = 0.02 s" in r.stdout  # P pauses before frame 1; the two N presses step 2 frames: 2/90 s
+    assert Image.open(out).size == (480, 360)
+
+
+def test_no_display_points_to_render(tmp_path):
+    """without a display, view exits 2 with a message that names clothsim render"""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    r = subprocess.run([sys.executable, "-m", "clothsim", "view", str(SCENES / "sphere.json")],
+                       capture_output=True, text=True, env=env, timeout=60)
+    assert r.returncode == 2 and "clothsim render" in r.stderr and "Traceback" not in r.stderr
