@@ -50,6 +50,29 @@ def app(display):
     a.close()
 
 
+def test_window_after_offscreen_renderer(display):
+    """a window opens in a process that rendered offscreen and released its EGL context"""
+    from clothsim.render.renderer import DrawSettings, Renderer
+    from clothsim.render.scene_view import SimulationView, default_camera
+    from clothsim.viewer.app import ViewerApp
+
+    sim = Simulation.from_file(SCENES / "plane.json")
+    r = Renderer(size=(32, 32))
+    SimulationView(r, sim).sync()
+    assert r.render(default_camera(sim), DrawSettings()).any()
+    r.release()
+    code = ("import sys; from clothsim import Simulation; from clothsim.render.renderer import Renderer;"
+            "from clothsim.viewer.app import ViewerApp;"
+            "r = Renderer(size=(16, 16)); r.release();"
+            f"a = ViewerApp(Simulation.from_file({str(SCENES / 'plane.json')!r}), size=(160, 120));"
+            "a.frame(realtime=False); a.close(); print('ok')")
+    # in a fresh process too, where nothing else has touched GL before
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "DISPLAY": display})
+    assert out.returncode == 0 and "ok" in out.stdout, out.stderr
+    del ViewerApp
+
+
 def frames(app, n):
     for _ in range(n):
         app.frame(realtime=False)

@@ -7,6 +7,7 @@ whatever framebuffer the window has bound.
 
 from __future__ import annotations
 
+import ctypes
 import functools
 from dataclasses import dataclass, field
 
@@ -43,18 +44,42 @@ class DrawSettings:
 
 
 def _current(method):
-    """Run a GL method with this renderer's own context current.
+    """Run a GL method with this renderer's own context current, then release it.
 
     Several offscreen renderers may live in one process (tests, sweeps) and GL
     calls go to whichever context is current, so each entry point makes its
-    own current first. It is left current: glcontext's exit is not re-entrant.
+    own current. It is released afterwards, so that a window's GLX context can
+    be made current on the same thread (X aborts the process otherwise).
+    glcontext's exit is not re-entrant, so only the outermost call enters.
     """
     @functools.wraps(method)
     def wrapper(self, *args, **kwargs):
-        if self.offscreen:
-            self.ctx.mglo.__enter__()
-        return method(self, *args, **kwargs)
+        if not self.offscreen or self._depth:
+            return method(self, *args, **kwargs)
+        self._depth += 1
+        try:
+            with self.ctx:
+                return method(self, *args, **kwargs)
+        finally:
+            self._depth -= 1
     return wrapper
+
+
+def _drop_current_egl() -> None:
+    """Leave no EGL context current on this thread.
+
+    A released moderngl context stays current; a GLX window made current on
+    the same thread afterwards then fails with BadAccess, and Xlib exits.
+    """
+    try:
+        egl = ctypes.CDLL("libEGL.so.1")
+    except OSError:
+        return
+    egl.eglGetCurrentDisplay.restype = ctypes.c_void_p
+    egl.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+    display = egl.eglGetCurrentDisplay()
+    if display:
+        egl.eglMakeCurrent(display, None, None, None)
 
 
 def create_context():
@@ -85,8 +110,12 @@ class Renderer:
         self._cloth_vbo = None
         self._meshes: list[tuple[object, object, object, int]] = []  # vbo, tri ibo, edge ibo, id
         self.samples = 0
+        self._depth = 0
+        self._setup(size, samples, texture, height_map, cubemap)
+
+    @_current
+    def _setup(self, size, samples, texture, height_map, cubemap) -> None:
         if self.offscreen:
-            self.ctx.mglo.__enter__()
             self._make_framebuffers(size, samples)
         self._textures = self._make_textures(texture, height_map, cubemap)
 
@@ -247,7 +276,9 @@ class Renderer:
 
     def release(self) -> None:
         if self.offscreen:
+            self.ctx.__enter__()  # no exit: release() destroys the context it would restore
             self.ctx.release()  # takes every object of the context with it
+            _drop_current_egl()
         else:
             for vao in self._vaos.values():
                 vao.release()
