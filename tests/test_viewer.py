@@ -51,10 +51,12 @@ def app(display):
 
 
 def test_window_after_offscreen_renderer(display):
-    """a window opens in a process that rendered offscreen and released its EGL context"""
+    """a window opens in a process that rendered offscreen and released its EGL context
+
+    Here in the test process after a released renderer, and in a fresh process.
+    """
     from clothsim.render.renderer import DrawSettings, Renderer
     from clothsim.render.scene_view import SimulationView, default_camera
-    from clothsim.viewer.app import ViewerApp
 
     sim = Simulation.from_file(SCENES / "plane.json")
     r = Renderer(size=(32, 32))
@@ -70,7 +72,6 @@ def test_window_after_offscreen_renderer(display):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                          env={**os.environ, "DISPLAY": display})
     assert out.returncode == 0 and "ok" in out.stdout, out.stderr
-    del ViewerApp
 
 
 def frames(app, n):
