@@ -64,7 +64,6 @@ def test_provot_limits_stretch():
 
 def stretch_without_provot(sim: Simulation) -> float:
     """largest stretch over one second of the same run with the Provot pass removed"""
-    from clothsim.solver.collide import collide_planes, collide_spheres
     from clothsim.solver.integrate import accumulate_accelerations, verlet
 
     m, p = sim.model, sim.params
