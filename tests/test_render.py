@@ -45,9 +45,14 @@ def foreground(img: np.ndarray) -> np.ndarray:
 
 
 def interior(mask: np.ndarray) -> np.ndarray:
-    """the mask without its outline, where anti-aliasing blends with the background"""
+    """the mask without its outline, where anti-aliasing blends with the background
+    (a pixel counts as outline when any of its 8 neighbours is background)"""
     m = mask.copy()
-    m[1:-1, 1:-1] = mask[1:-1, 1:-1] & mask[:-2, 1:-1] & mask[2:, 1:-1] & mask[1:-1, :-2] & mask[1:-1, 2:]
+    core = mask[1:-1, 1:-1].copy()
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            core &= mask[1 + dr: mask.shape[0] - 1 + dr, 1 + dc: mask.shape[1] - 1 + dc]
+    m[1:-1, 1:-1] = core
     m[[0, -1]] = False
     m[:, [0, -1]] = False
     return m

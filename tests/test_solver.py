@@ -1,117 +1,207 @@
-"""Kernels checked against the formulas they implement, on hand-built inputs."""
+"""Kernels checked against the formulas they implement, on hand-built inputs and
+against plain NumPy/Python references over the model's spring list."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from clothsim.model import build_model
+from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
-from clothsim.solver.constrain import provot
-from clothsim.solver.integrate import accumulate_accelerations, verlet
-from clothsim.solver.self_collide import self_collide, table_size
+from clothsim.solver.grid import SET_KIND, SET_STEP, build_stencil, provot, spring_accelerations, verlet
+from clothsim.solver.self_collide import NeighbourList, self_collide
 
 
-def test_hooke_force_along_spring():
-    """a spring stretched by e pulls both ends toward each other with ks*e/m"""
-    pos = np.array([[0.0, 0, 0], [1.5, 0, 0]])
-    acc = np.zeros_like(pos)
-    accumulate_accelerations(pos, acc, np.zeros(3), np.array([0], np.int32), np.array([1], np.int32),
-                             np.array([1.0]), np.array([0, 1, 1, 1]), np.array([10.0, 0, 0]))
-    np.testing.assert_allclose(acc, [[5.0, 0, 0], [-5.0, 0, 0]])
+def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
+    spec = ClothSpec(width=spacing * (nw - 1), height=spacing * (nh - 1), num_width_points=nw,
+                     num_height_points=nh, thickness=0.01, orientation=0, pinned=list(pinned))
+    return build_model(spec)
+
+
+def planes(pos: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(pos.T)
+
+
+def test_stencil_sets_are_the_model_springs():
+    """the six offset sets hold exactly the model's springs, with their rest lengths"""
+    m = grid_model(7, 5)
+    st = build_stencil(m)
+    found = set()
+    for s in range(6):
+        for p in np.flatnonzero(st.valid[s]):
+            a, b = p + st.start[s], p + st.end[s]
+            found.add((min(a, b), max(a, b), SET_KIND[s]))
+            assert st.rest[s, p] == pytest.approx(np.linalg.norm(m.rest_positions[a] - m.rest_positions[b]))
+    expected = {(min(a, b), max(a, b), k) for a, b, k in zip(m.spring_a, m.spring_b, m.spring_kind)}
+    assert found == expected
+    assert sum(int(st.valid[s].sum()) for s in range(6)) == m.num_springs
+
+
+def reference_accelerations(pos, m, k_kind, gravity):
+    acc = np.tile(gravity, (len(pos), 1)).astype(float)
+    d = pos[m.spring_b] - pos[m.spring_a]
+    length = np.linalg.norm(d, axis=1)
+    f = (k_kind[m.spring_kind] * (length - m.spring_rest) / length)[:, None] * d
+    np.add.at(acc, m.spring_a, f)
+    np.add.at(acc, m.spring_b, -f)
+    return acc
+
+
+def test_hooke_forces_match_the_spring_list():
+    """every spring pulls both ends along itself with k*(l - rest)/m; bending uses its own k"""
+    m = grid_model(9, 6)
+    st = build_stencil(m)
+    rng = np.random.default_rng(1)
+    pos = m.rest_positions * rng.uniform(0.8, 1.3, size=m.rest_positions.shape)
+    k_kind = np.array([10.0, 7.0, 2.0])
+    g = np.array([0.0, -9.8, 0.0])
+    A = np.zeros((3, m.num_points))
+    spring_accelerations(planes(pos), A, g, k_kind[SET_KIND], st.start, st.end, st.count, st.valid,
+                         st.rest, np.zeros((3, m.num_points)))
+    np.testing.assert_allclose(A.T, reference_accelerations(pos, m, k_kind, g), rtol=1e-9, atol=1e-9)
 
 
 def test_disabled_kind_adds_no_force():
-    """k_over_m of 0 for a kind means its springs add nothing: only gravity remains"""
-    pos = np.array([[0.0, 0, 0], [2.0, 0, 0]])
-    acc = np.zeros_like(pos)
-    accumulate_accelerations(pos, acc, np.array([0, -9.8, 0]), np.array([0], np.int32),
-                             np.array([1], np.int32), np.array([1.0]), np.array([0, 0, 1, 1]),
-                             np.array([10.0, 0.0, 0.0]))
-    np.testing.assert_allclose(acc, [[0, -9.8, 0], [0, -9.8, 0]])
+    """k of 0 for every set means only gravity remains, however stretched the springs"""
+    m = grid_model(4, 4)
+    st = build_stencil(m)
+    A = np.zeros((3, m.num_points))
+    spring_accelerations(planes(m.rest_positions * 2.0), A, np.array([0, -9.8, 0.0]), np.zeros(6),
+                         st.start, st.end, st.count, st.valid, st.rest, np.zeros((3, m.num_points)))
+    np.testing.assert_array_equal(A.T, np.tile([0, -9.8, 0], (m.num_points, 1)))
 
 
 def test_verlet_formula_and_pins():
     """x' = x + (1-d)(x - x_prev) + a dt^2 for free points; pinned points untouched"""
-    pos = np.array([[1.0, 2, 3], [1.0, 2, 3]])
-    last = np.array([[0.5, 2, 3], [0.5, 2, 3]])
-    acc = np.array([[0.0, -10, 0], [0.0, -10, 0]])
-    verlet(pos, last, acc, np.array([False, True]), 0.9, 0.01)
-    np.testing.assert_allclose(pos[0], [1.0 + 0.9 * 0.5, 2 - 0.1, 3])
-    np.testing.assert_allclose(last[0], [1.0, 2, 3])
-    np.testing.assert_array_equal(pos[1], [1.0, 2, 3])
+    P = planes(np.array([[1.0, 2, 3], [1.0, 2, 3]]))
+    L = planes(np.array([[0.5, 2, 3], [0.5, 2, 3]]))
+    A = planes(np.array([[0.0, -10, 0], [0.0, -10, 0]]))
+    verlet(P, L, A, np.array([1.0, 0.0]), 0.9, 0.01)
+    np.testing.assert_allclose(P[:, 0], [1.0 + 0.9 * 0.5, 2 - 0.1, 3])
+    np.testing.assert_allclose(L[:, 0], [1.0, 2, 3])
+    np.testing.assert_array_equal(P[:, 1], [1.0, 2, 3])
+
+
+def run_provot(m, pos, enabled):
+    st = build_stencil(m)
+    P = planes(pos)
+    provot(P, (~m.pinned).astype(float), np.asarray(enabled), st.start, st.end, st.count, st.limit,
+           st.batch, np.zeros((6, m.num_points)))
+    return P.T.copy()
 
 
 def test_provot_independent_springs_end_at_110_percent():
-    """springs sharing no point end at exactly 1.1x rest in one pass: half each, all to the free end, none if both pinned"""
-    rng = np.random.default_rng(3)
-    pos = rng.normal(size=(8, 3))
-    a = np.array([0, 2, 4, 6], np.int32)
-    b = np.array([1, 3, 5, 7], np.int32)
-    rest = np.linalg.norm(pos[a] - pos[b], axis=1) / 1.6  # all stretched to 160%
-    pinned = np.array([False, False, True, False, False, True, True, True])
-    before = pos.copy()
-    provot(pos, pinned, a, b, rest, np.array([0, 4, 4, 4]), np.array([True, True, True]))
-    length = np.linalg.norm(pos[a] - pos[b], axis=1)
-    np.testing.assert_allclose(length[:3] / rest[:3], 1.1, rtol=1e-12)
-    assert length[3] / rest[3] == 1.6 or np.isclose(length[3] / rest[3], 1.6)  # both pinned: untouched
-    for p in np.flatnonzero(pinned):
-        np.testing.assert_array_equal(pos[p], before[p])
-    # half each: the midpoint of a free-free spring does not move
-    np.testing.assert_allclose((pos[0] + pos[1]) / 2, (before[0] + before[1]) / 2, atol=1e-12)
+    """vertical springs of a 3x2 grid share no point: one pass leaves each at exactly 1.1x,
+    half to each end, all to the free end, none when both ends are pinned"""
+    m = grid_model(3, 2, pinned=[(0, 0), (2, 0), (2, 1)])
+    pos = m.rest_positions.copy()
+    pos[3:, 2] = 1.6  # row 1 moved so every vertical spring is at 160%
+    after = run_provot(m, pos, [False, True, False, False, False, False])
+    length = np.abs(after[3:, 2] - after[:3, 2])
+    np.testing.assert_allclose(length[:2], 1.1, rtol=1e-12)
+    assert length[2] == 1.6  # both ends pinned: untouched
+    np.testing.assert_array_equal(after[m.pinned], pos[m.pinned])
+    assert after[1, 2] + after[4, 2] == pytest.approx(pos[1, 2] + pos[4, 2])  # half each: midpoint stays
 
 
-def test_provot_skips_disabled_kinds_and_short_springs():
-    """a disabled kind and a spring under 110% are left alone"""
-    pos = np.array([[0.0, 0, 0], [3.0, 0, 0], [10.0, 0, 0], [11.05, 0, 0]])
-    before = pos.copy()
-    provot(pos, np.zeros(4, bool), np.array([0, 2], np.int32), np.array([1, 3], np.int32),
-           np.array([1.0, 1.0]), np.array([0, 1, 2, 2]), np.array([False, True, True]))
-    np.testing.assert_array_equal(pos, before)
+def reference_provot(m, pos, enabled):
+    """Plain sequential Gauss-Seidel over the springs in the kernel's batch order."""
+    st = build_stencil(m)
+    pos = pos.copy()
+    pinned = m.pinned
+    for s in range(6):
+        if not enabled[s]:
+            continue
+        for half in range(2):
+            for p in np.flatnonzero(st.batch[s, half]):
+                a, b = p + st.start[s], p + st.end[s]
+                d = pos[b] - pos[a]
+                length = np.linalg.norm(d)
+                limit = 1.1 * st.rest[s, p]
+                if length <= limit or (pinned[a] and pinned[b]):
+                    continue
+                e = (length - limit) / length
+                ca = 0.0 if pinned[a] else (e if pinned[b] else e / 2)
+                cb = 0.0 if pinned[b] else (e if pinned[a] else e / 2)
+                pos[a] += ca * d
+                pos[b] -= cb * d
+    return pos
+
+
+def test_provot_is_a_sequential_pass():
+    """on a randomly stretched grid the kernel equals a one-spring-at-a-time pass
+    (so batching springs that share no point changes nothing), disabled sets skipped"""
+    m = grid_model(8, 7, pinned=[(0, 0), (7, 0), (3, 3)])
+    rng = np.random.default_rng(5)
+    pos = m.rest_positions + rng.normal(scale=0.3, size=m.rest_positions.shape)
+    for enabled in ([True] * 6, [True, True, False, False, True, True], [False] * 6):
+        np.testing.assert_allclose(run_provot(m, pos, enabled), reference_provot(m, pos, enabled),
+                                   rtol=0, atol=1e-11)
+
+
+def test_provot_batches_share_no_point():
+    """the premise of the batching: within a batch no point is touched twice"""
+    m = grid_model(9, 8)
+    st = build_stencil(m)
+    for s in range(6):
+        for half in range(2):
+            p = np.flatnonzero(st.batch[s, half])
+            ends = np.concatenate([p + st.start[s], p + st.end[s]])
+            assert len(np.unique(ends)) == len(ends), (s, half, SET_STEP[s])
+        assert (st.batch[s, 0] | st.batch[s, 1]).sum() == st.valid[s].sum()
 
 
 def test_sphere_pushes_to_surface_with_friction():
     """a point inside goes to last + (1-f)(surface - last), surface on the ray from the centre"""
     sphere = np.array([[0.0, 0, 0, 1.0, 0.25]])
-    pos = np.array([[0.0, 0.5, 0.0]])
-    last = np.array([[0.2, 1.2, 0.0]])
-    collide_spheres(pos, last, np.array([False]), sphere)
+    P = planes(np.array([[0.0, 0.5, 0.0], [0.0, 0.5, 0.0], [0.0, 2.0, 0.0]]))
+    L = planes(np.array([[0.2, 1.2, 0.0], [0.2, 1.2, 0.0], [0.0, 2.0, 0.0]]))
+    collide_spheres(P, L, np.array([1.0, 0.0, 1.0]), sphere)
     surface = np.array([0.0, 1.0, 0.0])
-    np.testing.assert_allclose(pos[0], last[0] + 0.75 * (surface - last[0]))
+    np.testing.assert_allclose(P[:, 0], L[:, 0] + 0.75 * (surface - L[:, 0]))
+    np.testing.assert_array_equal(P[:, 1], [0.0, 0.5, 0.0])  # pinned: stays inside
+    np.testing.assert_array_equal(P[:, 2], [0.0, 2.0, 0.0])  # outside: untouched
 
 
 def test_plane_puts_crossing_point_back_on_its_side():
     """a point that crossed the plane ends on its old side, PLANE_OFFSET off it (no friction)"""
     plane = np.array([[0.0, 0, 0, 0, 1, 0, 0.0]])
-    pos = np.array([[0.3, -0.2, 0.1], [0.0, -0.5, 0.0]])
-    last = np.array([[0.3, 0.1, 0.1], [0.0, -0.4, 0.0]])  # the second was already below: not crossing
-    collide_planes(pos, last, np.zeros(2, bool), plane)
-    np.testing.assert_allclose(pos[0], [0.3, PLANE_OFFSET, 0.1])
-    np.testing.assert_allclose(pos[1], [0.0, -0.5, 0.0])
+    P = planes(np.array([[0.3, -0.2, 0.1], [0.0, -0.5, 0.0]]))
+    L = planes(np.array([[0.3, 0.1, 0.1], [0.0, -0.4, 0.0]]))  # the second was already below: not crossing
+    collide_planes(P, L, np.ones(2), plane)
+    np.testing.assert_allclose(P[:, 0], [0.3, PLANE_OFFSET, 0.1])
+    np.testing.assert_allclose(P[:, 1], [0.0, -0.5, 0.0])
 
 
 def test_plane_friction_one_returns_to_last():
     """with friction 1 a crossing point goes back to where it was"""
     plane = np.array([[0.0, 0, 0, 0, 1, 0, 1.0]])
-    pos = np.array([[0.3, -0.2, 0.4]])
-    last = np.array([[0.1, 0.1, 0.1]])
-    collide_planes(pos, last, np.zeros(1, bool), plane)
-    np.testing.assert_allclose(pos[0], last[0])
+    P = planes(np.array([[0.3, -0.2, 0.4]]))
+    L = planes(np.array([[0.1, 0.1, 0.1]]))
+    collide_planes(P, L, np.ones(1), plane)
+    np.testing.assert_allclose(P[:, 0], L[:, 0])
 
 
-def _self_collide(pos, rest, thickness, cell, steps=1, pinned=None):
+def _self_collide(pos, rest, thickness, steps=1, pinned=None, lists=None):
+    """Run the kernel on (N, 3) positions in place; return the number of colliding pairs."""
     n = len(pos)
-    pinned = np.zeros(n, bool) if pinned is None else pinned
-    return self_collide(pos, rest, pinned, thickness, cell, steps,
-                        np.zeros(table_size(n) + 1, np.int64), np.zeros(n, np.int64), np.zeros((n, 3)),
-                        np.zeros((n, 3)), np.zeros((n, 3), np.int64), np.zeros((n, 3)), np.zeros(n, np.int64))
+    free = np.ones(n) if pinned is None else (~pinned).astype(float)
+    x = NeighbourList(n) if lists is None else lists
+    P = planes(pos)
+    x.pairs, hits = self_collide(P, rest, free, thickness, steps, x.bucket_start, x.order, x.sorted_pos,
+                                 x.sorted_cell, x.reference, x.pairs, x.push, x.count, x.meta)
+    pos[:] = P.T
+    return hits
 
 
-def test_self_collision_pushes_pair_apart_across_cell_border():
-    """two points on either side of a cell border each move to 2*thickness from the other's old place"""
+def test_self_collision_pushes_pair_apart():
+    """two close points each move to 2*thickness from the other's old place"""
     t = 0.01
-    pos = np.array([[0.995, 0.5, 0.5], [1.005, 0.5, 0.5]])  # border at x = 1.0 for cell 0.1
+    pos = np.array([[0.995, 0.5, 0.5], [1.005, 0.5, 0.5]])
     before = pos.copy()
-    rest = np.array([[0.0, 0, 0], [5.0, 0, 0]])             # far apart at rest
-    assert _self_collide(pos, rest, t, 0.1) == 1
+    rest = np.array([[0.0, 0, 0], [5.0, 0, 0]])  # far apart at rest
+    assert _self_collide(pos, rest, t) == 1
     np.testing.assert_allclose(np.linalg.norm(pos[0] - before[1]), 2 * t, rtol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(pos[1] - before[0]), 2 * t, rtol=1e-12)
 
@@ -122,26 +212,42 @@ def test_self_collision_averages_and_divides_by_steps():
     pos = np.array([[0.0, 0, 0], [0.06, 0, 0], [0.0, 0.08, 0]])
     rest = np.array([[0.0, 0, 0], [10.0, 0, 0], [20.0, 0, 0]])
     before = pos.copy()
-    _self_collide(pos, rest, t, 0.3, steps=4)
+    _self_collide(pos, rest, t, steps=4)
     expected = (np.array([-(0.1 - 0.06), 0, 0]) + np.array([0, -(0.1 - 0.08), 0])) / 2 / 4
     np.testing.assert_allclose(pos[0] - before[0], expected, atol=1e-12)
 
 
-def test_self_collision_ignores_pairs_close_at_rest():
-    """neighbours already closer than 2*thickness at rest are not pushed apart"""
-    pos = np.array([[0.0, 0, 0], [0.01, 0, 0]])
-    rest = pos.copy()
+def test_self_collision_ignores_pairs_close_at_rest_and_pins():
+    """neighbours already closer than 2*thickness at rest are not pushed; a pinned point stays"""
+    pos = np.array([[0.0, 0, 0], [0.01, 0, 0], [0.0, 0.005, 0.0]])
+    rest = np.array([[0.0, 0, 0], [0.01, 0, 0], [9.0, 9.0, 9.0]])
     before = pos.copy()
-    assert _self_collide(pos, rest, 0.0095, 0.03) == 0
-    np.testing.assert_array_equal(pos, before)
+    assert _self_collide(pos, rest, 0.0095, pinned=np.array([True, False, False])) == 2
+    np.testing.assert_array_equal(pos[0], before[0])
+    assert pos[1, 0] > before[1, 0]  # pushed only by point 2, away from it
 
 
-def test_self_collision_matches_brute_force():
-    """the hash finds exactly the pairs a brute-force search finds, for random clouds"""
-    rng = np.random.default_rng(7)
-    pos = rng.uniform(0, 0.3, size=(400, 3))
-    rest = rng.uniform(0, 100, size=(400, 3))
+def brute_force_pairs(pos, rest, reach):
     d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
-    expected = int((np.triu(d < 0.04, 1)).sum())
-    assert _self_collide(pos.copy(), rest, 0.02, 0.06) == expected
-    assert _self_collide(pos.copy(), rest, 0.02, 0.013) == expected  # cells smaller than the reach
+    r = np.linalg.norm(rest[:, None] - rest[None], axis=2)
+    return int(np.triu((d < reach) & (r >= reach) & (d > 0), 1).sum())
+
+
+def test_self_collision_matches_brute_force_as_points_move():
+    """the neighbour list finds exactly the colliding pairs a fresh search finds, call after
+    call while the points drift, jump and move together, reusing its buffers"""
+    rng = np.random.default_rng(7)
+    n, t = 400, 0.02
+    pos = rng.uniform(0, 0.3, size=(n, 3))
+    rest = rng.uniform(0, 3, size=(n, 3))
+    lists = NeighbourList(n)
+    lists.pairs = np.zeros((2, 8), dtype=np.int32)  # too small: the kernel must grow it
+    for step in range(40):
+        expected = brute_force_pairs(pos, rest, 2 * t)
+        probe = pos.copy()
+        assert _self_collide(probe, rest, t, steps=10 ** 9, lists=lists) == expected, step
+        pos += rng.normal(scale=0.002, size=pos.shape)  # drift a little each call
+        pos += [0.01, -0.02, 0.0]                       # and all together
+        if step % 10 == 9:
+            pos[rng.integers(n)] = rng.uniform(0, 0.3, 3)  # one point jumps
+    assert 1 < lists.rebuilds < 40

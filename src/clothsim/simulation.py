@@ -14,7 +14,8 @@ from .export import write_obj
 from .mesh import compute_normals
 from .model import ClothModel, build_model
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
-from .solver.self_collide import table_size
+from .solver.grid import SET_KIND, build_stencil
+from .solver.self_collide import NeighbourList
 
 RUNAWAY_FACTOR = 100.0
 """a point farther than this many cloth sizes from the start means the run blew up"""
@@ -81,26 +82,22 @@ class State:
         return cls(model.rest_positions.copy(), model.rest_positions.copy())
 
 
-@dataclass
 class _Scratch:
     """Buffers the kernels reuse every substep, allocated once per model."""
 
-    acc: np.ndarray
-    bucket_start: np.ndarray
-    order: np.ndarray
-    sorted_pos: np.ndarray
-    sorted_rest: np.ndarray
-    sorted_cell: np.ndarray
-    push: np.ndarray
-    count: np.ndarray
-
-    @classmethod
-    def for_model(cls, model: ClothModel) -> _Scratch:
+    def __init__(self, model: ClothModel) -> None:
         n = model.num_points
-        return cls(acc=np.zeros((n, 3)), bucket_start=np.zeros(table_size(n) + 1, dtype=np.int64),
-                   order=np.zeros(n, dtype=np.int64), sorted_pos=np.zeros((n, 3)),
-                   sorted_rest=np.zeros((n, 3)), sorted_cell=np.zeros((n, 3), dtype=np.int64),
-                   push=np.zeros((n, 3)), count=np.zeros(n, dtype=np.int64))
+        self.stencil = build_stencil(model)
+        self.free = (~model.pinned).astype(np.float64)
+        self.planes = np.zeros((3, 3, n))  # positions, last positions, accelerations
+        self.t = np.zeros((3, n))
+        self.c = np.zeros((6, n))
+        self.lists = NeighbourList(n)
+
+    def list_buffers(self) -> tuple:
+        x = self.lists
+        return (x.bucket_start, x.order, x.sorted_pos, x.sorted_cell, x.reference, x.pairs,
+                x.push, x.count, x.meta)
 
 
 @dataclass
@@ -124,11 +121,10 @@ class Simulation:
         self.spheres = copy.deepcopy(self.scene.spheres)
         self.planes = copy.deepcopy(self.scene.planes)
         self.state = State.at_rest(self.model)
-        self._scratch = _Scratch.for_model(self.model)
+        self._scratch = _Scratch(self.model)
         self._center = self.model.rest_positions.mean(axis=0)
         size = max(self.model.width, self.model.height)
         self._runaway2 = (RUNAWAY_FACTOR * size) ** 2
-        self._cell_size = 3.0 * self.model.width / self.model.num_width_points
         self._normals: np.ndarray | None = None
         self._handle = -1
         self._handle_pos = np.zeros(3)
@@ -195,16 +191,17 @@ class Simulation:
         p = self.params
         n = p.simulation_steps if substeps is None else substeps
         k = p.ks / self.point_mass
-        k_over_m = np.array([k, k, 0.2 * k]) * p.enabled
+        k_over_m = (np.array([k, k, 0.2 * k]) * p.enabled)[SET_KIND]
         m, s = self.model, self._scratch
-        far2 = solver.advance(
-            self.state.positions, self.state.last_positions, s.acc, m.rest_positions, m.pinned,
-            m.spring_a, m.spring_b, m.spring_rest, m.kind_start, k_over_m, p.enabled,
-            np.asarray(p.gravity, dtype=np.float64), 1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
+        st = s.stencil
+        far2, s.lists.pairs = solver.advance(
+            self.state.positions, self.state.last_positions, m.rest_positions, s.free,
+            np.asarray(p.gravity, dtype=np.float64), k_over_m, p.enabled[SET_KIND],
+            1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
+            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.batch,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
-            bool(p.self_collision), m.thickness, self._cell_size,
-            s.bucket_start, s.order, s.sorted_pos, s.sorted_rest, s.sorted_cell, s.push, s.count,
-            self._handle, self._handle_pos, self._center)
+            bool(p.self_collision), m.thickness, s.planes[0], s.planes[1], s.planes[2], s.t, s.c,
+            s.list_buffers(), self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None

@@ -8,8 +8,7 @@ import numpy as np
 from numba import njit
 
 from .collide import collide_planes, collide_spheres
-from .constrain import provot
-from .integrate import accumulate_accelerations, verlet
+from .grid import provot, spring_accelerations, verlet
 from .self_collide import self_collide
 
 
@@ -29,14 +28,15 @@ def pack_planes(planes: Sequence) -> np.ndarray:
     return out
 
 
-@njit(cache=True, fastmath=True, boundscheck=False)
-def _farthest(pos, center):
-    """Largest squared distance from ``center``; inf if any coordinate is not finite."""
+@njit(cache=True, boundscheck=False)
+def _farthest(P, center):
+    """Largest squared distance from ``center``; inf if any coordinate is not finite.
+    Compiled without fastmath, which would let LLVM assume the check away."""
     worst = 0.0
-    for p in range(pos.shape[0]):
-        dx = pos[p, 0] - center[0]
-        dy = pos[p, 1] - center[1]
-        dz = pos[p, 2] - center[2]
+    for p in range(P.shape[1]):
+        dx = P[0, p] - center[0]
+        dy = P[1, p] - center[1]
+        dz = P[2, p] - center[2]
         d2 = dx * dx + dy * dy + dz * dz
         if not np.isfinite(d2):
             return np.inf
@@ -45,37 +45,62 @@ def _farthest(pos, center):
     return worst
 
 
-@njit(cache=True, fastmath=False, boundscheck=False)
-def advance(pos, last, acc, rest, pinned, spring_a, spring_b, spring_rest, kind_start,
-            k_over_m, enabled, gravity, keep, dt, substeps, simulation_steps, spheres, planes,
-            self_collision, thickness, cell_size, bucket_start, order, sorted_pos, sorted_rest, sorted_cell,
-            push, count, handle, handle_pos, center):
-    """Run ``substeps`` substeps in place; return the largest squared distance of a
-    point from ``center`` afterwards (inf when the state is no longer finite).
+@njit(cache=True, boundscheck=False)
+def _to_planes(pos, P):
+    for p in range(pos.shape[0]):
+        for c in range(3):
+            P[c, p] = pos[p, c]
 
-    Order per substep, as in the CS184 course code: forces, Verlet, self-collision,
-    sphere and plane collisions, then the Provot pass. ``handle`` (or -1) is a
-    point held at ``handle_pos`` by the user's grab: it moves kinematically.
+
+@njit(cache=True, boundscheck=False)
+def _from_planes(P, pos):
+    for p in range(pos.shape[0]):
+        for c in range(3):
+            pos[p, c] = P[c, p]
+
+
+@njit(cache=True, boundscheck=False)
+def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
+            start, end, count, valid, rest_length, limit, batch, spheres, planes,
+            self_collision, thickness, P, L, A, t, c, lists, handle, handle_pos, center):
+    """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
+
+    Returns (largest squared distance of a point from ``center`` afterwards,
+    inf when the state is no longer finite; the neighbour-list pairs array,
+    replaced when it grew). ``lists`` is the tuple of self-collision buffers,
+    (bucket_start, order, sorted_pos, sorted_cell, reference, pairs, push,
+    count, meta).
+
+    Order per substep, as in the CS184 course code: forces, Verlet,
+    self-collision, sphere and plane collisions, then the Provot pass.
+    ``handle`` (or -1) is a point held at ``handle_pos`` by the user's grab:
+    it moves kinematically. The kernels work on (3, N) coordinate planes
+    ``P`` (positions), ``L`` (last positions), ``A`` (accelerations).
     """
+    bucket_start, order, sorted_pos, sorted_cell, reference, pairs, push, hits, meta = lists
+    _to_planes(pos, P)
+    _to_planes(last, L)
     dt2 = dt * dt
     for _ in range(substeps):
-        accumulate_accelerations(pos, acc, gravity, spring_a, spring_b, spring_rest, kind_start, k_over_m)
-        verlet(pos, last, acc, pinned, keep, dt2)
+        spring_accelerations(P, A, gravity, k_over_m, start, end, count, valid, rest_length, t)
+        verlet(P, L, A, free, keep, dt2)
         if handle >= 0:
-            _hold(pos, handle, handle_pos)
+            _hold(P, handle, handle_pos)
         if self_collision:
-            self_collide(pos, rest, pinned, thickness, cell_size, simulation_steps,
-                         bucket_start, order, sorted_pos, sorted_rest, sorted_cell, push, count)
-        collide_spheres(pos, last, pinned, spheres)
-        collide_planes(pos, last, pinned, planes)
-        provot(pos, pinned, spring_a, spring_b, spring_rest, kind_start, enabled)
+            pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, bucket_start, order,
+                                    sorted_pos, sorted_cell, reference, pairs, push, hits, meta)
+        collide_spheres(P, L, free, spheres)
+        collide_planes(P, L, free, planes)
+        provot(P, free, enabled, start, end, count, limit, batch, c)
         if handle >= 0:
-            _hold(pos, handle, handle_pos)
-    return _farthest(pos, center)
+            _hold(P, handle, handle_pos)
+    _from_planes(P, pos)
+    _from_planes(L, last)
+    return _farthest(P, center), pairs
 
 
 @njit(cache=True, inline="always")
-def _hold(pos, handle, target):
-    pos[handle, 0] = target[0]
-    pos[handle, 1] = target[1]
-    pos[handle, 2] = target[2]
+def _hold(P, handle, target):
+    P[0, handle] = target[0]
+    P[1, handle] = target[1]
+    P[2, handle] = target[2]

@@ -1,0 +1,196 @@
+"""Spring forces and the Provot pass as stencils over the cloth grid.
+
+The cloth is a regular grid, so every spring kind is a fixed offset between
+two grid points. Holding x, y and z as separate planes of ``rows*cols``
+values, point p of a spring set is joined to point ``p + offset``, and each
+set is one long loop over contiguous memory, which LLVM turns into SIMD code;
+a loop over a spring list with indexed ends does not vectorise. Where the
+offset would wrap past the end of a grid row, the spring does not exist and
+its ``valid`` weight is 0.
+
+The six sets, indexed by ``s``, join grid point ``(r, i)`` to ``(r + dr, i + di)``:
+
+===  ==========  ==  ==
+s    kind        dr  di
+===  ==========  ==  ==
+0    structural  0   1
+1    structural  1   0
+2    shearing    1   1
+3    shearing    1   -1
+4    bending     0   2
+5    bending     2   0
+===  ==========  ==  ==
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..model import BENDING, SHEARING, STRUCTURAL, ClothModel
+MAX_STRETCH = 1.1
+"""Provot: no spring longer than this times its rest length"""
+
+KERNEL_OPTIONS = dict(cache=True, fastmath=True, boundscheck=False, error_model="numpy")
+"""error_model="numpy" drops the zero-division check, which would stop LLVM vectorising"""
+
+SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
+"""the spring kind of each stencil set"""
+SET_STEP = ((0, 1), (1, 0), (1, 1), (1, -1), (0, 2), (2, 0))
+"""(dr, di) of each stencil set"""
+
+
+@dataclass(frozen=True)
+class Stencil:
+    """The springs of a grid as six offset sets over flat point indices."""
+
+    start: np.ndarray
+    """first end of set s's spring p is point ``p + start[s]``, int64 (6,)"""
+    end: np.ndarray
+    """its second end is ``p + end[s]``, int64 (6,)"""
+    count: np.ndarray
+    """p runs over ``range(count[s])``, int64 (6,)"""
+    valid: np.ndarray
+    """1.0 where spring p of set s exists, 0.0 where it would wrap a row, (6, N)"""
+    rest: np.ndarray
+    """rest lengths [m], 0 where no spring, (6, N)"""
+    limit: np.ndarray
+    """MAX_STRETCH * rest [m], (6, N)"""
+    batch: np.ndarray
+    """Provot batches: spring p of set s takes part in pass half h where
+    ``batch[s, h, p]``; the springs of one half share no point, bool (6, 2, N)"""
+
+
+def build_stencil(model: ClothModel) -> Stencil:
+    rows, cols = model.num_height_points, model.num_width_points
+    n = rows * cols
+    r = np.repeat(np.arange(rows), cols)
+    i = np.tile(np.arange(cols), rows)
+    start, end, count = np.zeros(6, np.int64), np.zeros(6, np.int64), np.zeros(6, np.int64)
+    valid = np.zeros((6, n))
+    rest = np.zeros((6, n))
+    batch = np.zeros((6, 2, n), dtype=bool)
+    pos = model.rest_positions
+    for s, (dr, di) in enumerate(SET_STEP):
+        # set 3 goes down-left: it starts one column in, so p stays the cell's corner
+        start[s] = 1 if di < 0 else 0
+        end[s] = dr * cols + max(di, 0)
+        count[s] = n - max(start[s], end[s])
+        p = np.arange(count[s])
+        ok = (r[p] + dr < rows) & (i[p] + abs(di) < cols)
+        valid[s, p] = ok
+        a, b = p[ok] + start[s], p[ok] + end[s]
+        rest[s, p[ok]] = np.linalg.norm(pos[b] - pos[a], axis=1)
+        step = abs(di) if dr == 0 else dr
+        colour = ((i[p] if dr == 0 else r[p]) // step) % 2
+        batch[s, 0, p] = ok & (colour == 0)
+        batch[s, 1, p] = ok & (colour == 1)
+    for arr in (start, end, count, valid, rest, batch):
+        arr.setflags(write=False)
+    limit = MAX_STRETCH * rest
+    limit.setflags(write=False)
+    return Stencil(start, end, count, valid, rest, limit, batch)
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _inv_length(l2):
+    """1/sqrt(l2) to about 1e-13 relative: a single-precision estimate refined by
+    one Newton step in double, which is cheaper than a double sqrt and divide."""
+    y = np.float64(np.float32(1.0) / np.sqrt(np.float32(max(l2, 1e-30))))
+    return y * (1.5 - 0.5 * l2 * y * y)
+
+
+@njit(**KERNEL_OPTIONS)
+def spring_accelerations(P, A, gravity, k_over_m, start, end, count, valid, rest, t):
+    """A <- gravity + spring forces / mass; P and A are (3, N) coordinate planes.
+
+    ``k_over_m[s]`` is set s's spring constant over the point mass, 0 when its
+    kind is disabled. Forces go into the (3, N) scratch ``t`` first and are
+    added to both ends after, so no loop reads and writes one plane at two offsets.
+    """
+    for c in range(3):
+        A[c] = gravity[c]
+    x, y, z = P[0], P[1], P[2]
+    tx, ty, tz = t[0], t[1], t[2]
+    for s in range(6):
+        k = k_over_m[s]
+        if k == 0.0:
+            continue
+        oa, ob, m = start[s], end[s], count[s]
+        w, rl = valid[s], rest[s]
+        # views that start at each end: plain p indexing lets LLVM skip the
+        # negative-index wraparound, which would block vectorisation
+        xa, ya, za = x[oa:], y[oa:], z[oa:]
+        xb, yb, zb = x[ob:], y[ob:], z[ob:]
+        for p in range(m):
+            dx = xb[p] - xa[p]
+            dy = yb[p] - ya[p]
+            dz = zb[p] - za[p]
+            f = k * w[p] * (1.0 - rl[p] * _inv_length(dx * dx + dy * dy + dz * dz))
+            tx[p] = f * dx
+            ty[p] = f * dy
+            tz[p] = f * dz
+        for c in range(3):
+            a, b, tc = A[c, oa:], A[c, ob:], t[c]
+            for p in range(m):
+                a[p] += tc[p]
+            for p in range(m):
+                b[p] -= tc[p]
+
+
+@njit(**KERNEL_OPTIONS)
+def verlet(P, L, A, free, keep, dt2):
+    """x' = x + keep*(x - x_prev) + a dt² where free is 1; unchanged where it is 0."""
+    for c in range(3):
+        x, last, a = P[c], L[c], A[c]
+        for p in range(x.shape[0]):
+            xp = x[p]
+            x[p] = xp + free[p] * (keep * (xp - last[p]) + a[p] * dt2)
+            last[p] = xp
+
+
+@njit(**KERNEL_OPTIONS)
+def provot(P, free, enabled, start, end, count, limit, batch, c):
+    """Shorten every enabled spring longer than ``limit`` (1.1x rest) back to it.
+
+    One Gauss-Seidel pass, in an order where each batch holds springs that
+    share no point (every other row of a vertical set, every other spring of
+    a row for a horizontal one). Within a batch that gives the same result as
+    any sequential order, so the corrections are computed together (and
+    vectorised) and applied after. The correction goes half to each end, all
+    of it to the free end when the other is pinned, none when both are.
+    ``c`` is (6, N) scratch.
+    """
+    x, y, z = P[0], P[1], P[2]
+    for s in range(6):
+        if not enabled[s]:
+            continue
+        oa, ob, m = start[s], end[s], count[s]
+        lim = limit[s]
+        xa, ya, za, fa = x[oa:], y[oa:], z[oa:], free[oa:]
+        xb, yb, zb, fb = x[ob:], y[ob:], z[ob:], free[ob:]
+        for half in range(2):
+            on = batch[s, half]
+            for p in range(m):
+                dx = xb[p] - xa[p]
+                dy = yb[p] - ya[p]
+                dz = zb[p] - za[p]
+                l2 = dx * dx + dy * dy + dz * dz
+                e = 1.0 - lim[p] * _inv_length(l2)
+                e = e if (on[p] and l2 > lim[p] * lim[p]) else 0.0
+                ea = e * fa[p] * (1.0 - 0.5 * fb[p])
+                eb = e * fb[p] * (1.0 - 0.5 * fa[p])
+                c[0, p] = ea * dx
+                c[1, p] = ea * dy
+                c[2, p] = ea * dz
+                c[3, p] = eb * dx
+                c[4, p] = eb * dy
+                c[5, p] = eb * dz
+            for d in range(3):
+                pa, pb, ca, cb = P[d, oa:], P[d, ob:], c[d], c[3 + d]
+                for p in range(m):
+                    pa[p] += ca[p]
+                for p in range(m):
+                    pb[p] -= cb[p]
