@@ -9,7 +9,7 @@ import pytest
 from clothsim.model import build_model
 from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
-from clothsim.solver.grid import SET_KIND, SET_STEP, build_stencil, provot, spring_accelerations, verlet
+from clothsim.solver.grid import NO_LIMIT, SET_KIND, SET_STEP, build_stencil, provot, spring_accelerations, verlet
 from clothsim.solver.self_collide import NeighbourList, self_collide
 
 
@@ -86,8 +86,8 @@ def test_verlet_formula_and_pins():
 def run_provot(m, pos, enabled):
     st = build_stencil(m)
     P = planes(pos)
-    provot(P, (~m.pinned).astype(float), np.asarray(enabled), st.start, st.end, st.count, st.limit,
-           st.batch, np.zeros((6, m.num_points)))
+    provot(P, np.asarray(enabled), st.start, st.end, st.count, st.limit, st.share,
+           np.zeros((6, m.num_points)))
     return P.T.copy()
 
 
@@ -114,7 +114,7 @@ def reference_provot(m, pos, enabled):
         if not enabled[s]:
             continue
         for half in range(2):
-            for p in np.flatnonzero(st.batch[s, half]):
+            for p in np.flatnonzero(st.limit[s, half] < NO_LIMIT):
                 a, b = p + st.start[s], p + st.end[s]
                 d = pos[b] - pos[a]
                 length = np.linalg.norm(d)
@@ -146,10 +146,11 @@ def test_provot_batches_share_no_point():
     st = build_stencil(m)
     for s in range(6):
         for half in range(2):
-            p = np.flatnonzero(st.batch[s, half])
+            p = np.flatnonzero(st.limit[s, half] < NO_LIMIT)
             ends = np.concatenate([p + st.start[s], p + st.end[s]])
             assert len(np.unique(ends)) == len(ends), (s, half, SET_STEP[s])
-        assert (st.batch[s, 0] | st.batch[s, 1]).sum() == st.valid[s].sum()
+        in_a_batch = (st.limit[s, 0] < NO_LIMIT) | (st.limit[s, 1] < NO_LIMIT)
+        np.testing.assert_array_equal(in_a_batch, st.valid[s] == 1)
 
 
 def test_sphere_pushes_to_surface_with_friction():
@@ -190,7 +191,7 @@ def _self_collide(pos, rest, thickness, steps=1, pinned=None, lists=None):
     x = NeighbourList(n) if lists is None else lists
     P = planes(pos)
     x.pairs, hits = self_collide(P, rest, free, thickness, steps, x.bucket_start, x.order, x.sorted_pos,
-                                 x.sorted_cell, x.reference, x.pairs, x.push, x.count, x.meta)
+                                 x.sorted_key, x.reference, x.pairs, x.push, x.count, x.meta)
     pos[:] = P.T
     return hits
 

@@ -96,7 +96,7 @@ class _Scratch:
 
     def list_buffers(self) -> tuple:
         x = self.lists
-        return (x.bucket_start, x.order, x.sorted_pos, x.sorted_cell, x.reference, x.pairs,
+        return (x.bucket_start, x.order, x.sorted_pos, x.sorted_key, x.reference, x.pairs,
                 x.push, x.count, x.meta)
 
 
@@ -198,7 +198,7 @@ class Simulation:
             self.state.positions, self.state.last_positions, m.rest_positions, s.free,
             np.asarray(p.gravity, dtype=np.float64), k_over_m, p.enabled[SET_KIND],
             1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
-            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.batch,
+            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
             bool(p.self_collision), m.thickness, s.planes[0], s.planes[1], s.planes[2], s.t, s.c,
             s.list_buffers(), self._handle, self._handle_pos, self._center)

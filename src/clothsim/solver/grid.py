@@ -40,6 +40,10 @@ SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDIN
 """the spring kind of each stencil set"""
 SET_STEP = ((0, 1), (1, 0), (1, 1), (1, -1), (0, 2), (2, 0))
 """(dr, di) of each stencil set"""
+CHUNK = 512
+"""springs per block of the force and Provot loops: their scratch stays in L1"""
+NO_LIMIT = 1e30
+"""the Provot limit of a spring outside the current batch: never reached"""
 
 
 @dataclass(frozen=True)
@@ -57,10 +61,12 @@ class Stencil:
     rest: np.ndarray
     """rest lengths [m], 0 where no spring, (6, N)"""
     limit: np.ndarray
-    """MAX_STRETCH * rest [m], (6, N)"""
-    batch: np.ndarray
-    """Provot batches: spring p of set s takes part in pass half h where
-    ``batch[s, h, p]``; the springs of one half share no point, bool (6, 2, N)"""
+    """Provot batches: ``limit[s, h, p]`` is MAX_STRETCH * rest [m] when spring p of
+    set s takes part in half h of the set's pass, else NO_LIMIT; the springs
+    of one half share no point, (6, 2, N)"""
+    share: np.ndarray
+    """fraction of a Provot correction that goes to each end, (6, 2, N): half
+    each, all to the free end when the other is pinned, none when both are"""
 
 
 def build_stencil(model: ClothModel) -> Stencil:
@@ -71,7 +77,9 @@ def build_stencil(model: ClothModel) -> Stencil:
     start, end, count = np.zeros(6, np.int64), np.zeros(6, np.int64), np.zeros(6, np.int64)
     valid = np.zeros((6, n))
     rest = np.zeros((6, n))
-    batch = np.zeros((6, 2, n), dtype=bool)
+    limit = np.full((6, 2, n), NO_LIMIT)
+    share = np.zeros((6, 2, n))
+    free = ~model.pinned
     pos = model.rest_positions
     for s, (dr, di) in enumerate(SET_STEP):
         # set 3 goes down-left: it starts one column in, so p stays the cell's corner
@@ -83,15 +91,17 @@ def build_stencil(model: ClothModel) -> Stencil:
         valid[s, p] = ok
         a, b = p[ok] + start[s], p[ok] + end[s]
         rest[s, p[ok]] = np.linalg.norm(pos[b] - pos[a], axis=1)
+        fa, fb = free[p + start[s]], free[p + end[s]]
+        share[s, 0, p] = fa * (1.0 - 0.5 * fb)
+        share[s, 1, p] = fb * (1.0 - 0.5 * fa)
         step = abs(di) if dr == 0 else dr
         colour = ((i[p] if dr == 0 else r[p]) // step) % 2
-        batch[s, 0, p] = ok & (colour == 0)
-        batch[s, 1, p] = ok & (colour == 1)
-    for arr in (start, end, count, valid, rest, batch):
+        for half in range(2):
+            on = ok & (colour == half)
+            limit[s, half, p[on]] = MAX_STRETCH * rest[s, p[on]]
+    for arr in (start, end, count, valid, rest, limit, share):
         arr.setflags(write=False)
-    limit = MAX_STRETCH * rest
-    limit.setflags(write=False)
-    return Stencil(start, end, count, valid, rest, limit, batch)
+    return Stencil(start, end, count, valid, rest, limit, share)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -107,7 +117,7 @@ def spring_accelerations(P, A, gravity, k_over_m, start, end, count, valid, rest
     """A <- gravity + spring forces / mass; P and A are (3, N) coordinate planes.
 
     ``k_over_m[s]`` is set s's spring constant over the point mass, 0 when its
-    kind is disabled. Forces go into the (3, N) scratch ``t`` first and are
+    kind is disabled. Forces go into the (3, CHUNK) scratch ``t`` first and are
     added to both ends after, so no loop reads and writes one plane at two offsets.
     """
     for c in range(3):
@@ -121,23 +131,27 @@ def spring_accelerations(P, A, gravity, k_over_m, start, end, count, valid, rest
         oa, ob, m = start[s], end[s], count[s]
         w, rl = valid[s], rest[s]
         # views that start at each end: plain p indexing lets LLVM skip the
-        # negative-index wraparound, which would block vectorisation
-        xa, ya, za = x[oa:], y[oa:], z[oa:]
-        xb, yb, zb = x[ob:], y[ob:], z[ob:]
-        for p in range(m):
-            dx = xb[p] - xa[p]
-            dy = yb[p] - ya[p]
-            dz = zb[p] - za[p]
-            f = k * w[p] * (1.0 - rl[p] * _inv_length(dx * dx + dy * dy + dz * dz))
-            tx[p] = f * dx
-            ty[p] = f * dy
-            tz[p] = f * dz
-        for c in range(3):
-            a, b, tc = A[c, oa:], A[c, ob:], t[c]
-            for p in range(m):
-                a[p] += tc[p]
-            for p in range(m):
-                b[p] -= tc[p]
+        # negative-index wraparound, which would block vectorisation; chunks
+        # keep the scratch in L1
+        for lo in range(0, m, CHUNK):
+            n = min(CHUNK, m - lo)
+            xa, ya, za = x[oa + lo:], y[oa + lo:], z[oa + lo:]
+            xb, yb, zb = x[ob + lo:], y[ob + lo:], z[ob + lo:]
+            wc, rc = w[lo:], rl[lo:]
+            for p in range(n):
+                dx = xb[p] - xa[p]
+                dy = yb[p] - ya[p]
+                dz = zb[p] - za[p]
+                f = k * wc[p] * (1.0 - rc[p] * _inv_length(dx * dx + dy * dy + dz * dz))
+                tx[p] = f * dx
+                ty[p] = f * dy
+                tz[p] = f * dz
+            for c in range(3):
+                a, b, tc = A[c, oa + lo:], A[c, ob + lo:], t[c]
+                for p in range(n):
+                    a[p] += tc[p]
+                for p in range(n):
+                    b[p] -= tc[p]
 
 
 @njit(**KERNEL_OPTIONS)
@@ -152,45 +166,45 @@ def verlet(P, L, A, free, keep, dt2):
 
 
 @njit(**KERNEL_OPTIONS)
-def provot(P, free, enabled, start, end, count, limit, batch, c):
-    """Shorten every enabled spring longer than ``limit`` (1.1x rest) back to it.
+def provot(P, enabled, start, end, count, limit, share, c):
+    """Shorten every enabled spring longer than its limit (1.1x rest) back to it.
 
     One Gauss-Seidel pass, in an order where each batch holds springs that
     share no point (every other row of a vertical set, every other spring of
     a row for a horizontal one). Within a batch that gives the same result as
     any sequential order, so the corrections are computed together (and
-    vectorised) and applied after. The correction goes half to each end, all
-    of it to the free end when the other is pinned, none when both are.
-    ``c`` is (6, N) scratch.
+    vectorised) and applied after; springs outside the batch have a limit
+    they never reach. ``c`` is (6, CHUNK) scratch.
     """
     x, y, z = P[0], P[1], P[2]
     for s in range(6):
         if not enabled[s]:
             continue
         oa, ob, m = start[s], end[s], count[s]
-        lim = limit[s]
-        xa, ya, za, fa = x[oa:], y[oa:], z[oa:], free[oa:]
-        xb, yb, zb, fb = x[ob:], y[ob:], z[ob:], free[ob:]
         for half in range(2):
-            on = batch[s, half]
-            for p in range(m):
-                dx = xb[p] - xa[p]
-                dy = yb[p] - ya[p]
-                dz = zb[p] - za[p]
-                l2 = dx * dx + dy * dy + dz * dz
-                e = 1.0 - lim[p] * _inv_length(l2)
-                e = e if (on[p] and l2 > lim[p] * lim[p]) else 0.0
-                ea = e * fa[p] * (1.0 - 0.5 * fb[p])
-                eb = e * fb[p] * (1.0 - 0.5 * fa[p])
-                c[0, p] = ea * dx
-                c[1, p] = ea * dy
-                c[2, p] = ea * dz
-                c[3, p] = eb * dx
-                c[4, p] = eb * dy
-                c[5, p] = eb * dz
-            for d in range(3):
-                pa, pb, ca, cb = P[d, oa:], P[d, ob:], c[d], c[3 + d]
-                for p in range(m):
-                    pa[p] += ca[p]
-                for p in range(m):
-                    pb[p] -= cb[p]
+            for lo in range(0, m, CHUNK):
+                n = min(CHUNK, m - lo)
+                xa, ya, za = x[oa + lo:], y[oa + lo:], z[oa + lo:]
+                xb, yb, zb = x[ob + lo:], y[ob + lo:], z[ob + lo:]
+                lim, wa, wb = limit[s, half, lo:], share[s, 0, lo:], share[s, 1, lo:]
+                for p in range(n):
+                    dx = xb[p] - xa[p]
+                    dy = yb[p] - ya[p]
+                    dz = zb[p] - za[p]
+                    l2 = dx * dx + dy * dy + dz * dz
+                    e = 1.0 - lim[p] * _inv_length(l2)
+                    e = e if l2 > lim[p] * lim[p] else 0.0
+                    ea = e * wa[p]
+                    eb = e * wb[p]
+                    c[0, p] = ea * dx
+                    c[1, p] = ea * dy
+                    c[2, p] = ea * dz
+                    c[3, p] = eb * dx
+                    c[4, p] = eb * dy
+                    c[5, p] = eb * dz
+                for d in range(3):
+                    pa, pb, ca, cb = P[d, oa + lo:], P[d, ob + lo:], c[d], c[3 + d]
+                    for p in range(n):
+                        pa[p] += ca[p]
+                    for p in range(n):
+                        pb[p] -= cb[p]

@@ -55,8 +55,8 @@ class NeighbourList:
         n = num_points
         self.bucket_start = np.zeros(table_size(n) + 1, dtype=np.int64)
         self.order = np.zeros(n, dtype=np.int64)
-        self.sorted_pos = np.zeros((n, 3))
-        self.sorted_cell = np.zeros((n, 3), dtype=np.int64)
+        self.sorted_pos = np.zeros((n, 6))  # position and rest position per slot
+        self.sorted_key = np.zeros(n, dtype=np.int64)
         self.reference = np.zeros((3, n))
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
         self.push = np.zeros((3, n))
@@ -82,13 +82,19 @@ def _bucket(cx, cy, cz, mask):
     return h & mask
 
 
+@njit(cache=True, inline="always")
+def _cell_key(cx, cy, cz):
+    """One integer per cell, unique while |cell index| < 2**20 on every axis."""
+    return (cx & 0x1FFFFF) | ((cy & 0x1FFFFF) << 21) | ((cz & 0x1FFFFF) << 42)
+
+
 @njit(**KERNEL_OPTIONS)
-def _sort_into_cells(P, inv_cell, bucket_start, order, sorted_pos, sorted_cell):
+def _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_key):
     """Counting-sort the points by hashed cell.
 
     Afterwards bucket b holds sorted slots ``bucket_start[b] : bucket_start[b+1]``;
-    ``order[k]`` is the point in slot k, and its position and cell are copied
-    to slot k so that a neighbour query reads contiguous memory.
+    ``order[k]`` is the point in slot k, and its position, rest position and
+    cell key are copied to slot k so that a neighbour query reads contiguous memory.
     """
     n = P.shape[1]
     mask = bucket_start.shape[0] - 2
@@ -97,45 +103,55 @@ def _sort_into_cells(P, inv_cell, bucket_start, order, sorted_pos, sorted_cell):
         cx = np.int64(np.floor(P[0, p] * inv_cell))
         cy = np.int64(np.floor(P[1, p] * inv_cell))
         cz = np.int64(np.floor(P[2, p] * inv_cell))
-        sorted_cell[p, 0] = cx  # staged by point index, moved to slots below
-        sorted_cell[p, 1] = cy
-        sorted_cell[p, 2] = cz
-        bucket_start[_bucket(cx, cy, cz, mask) + 1] += 1
+        order[p] = _bucket(cx, cy, cz, mask)  # staged here, replaced by the slot order below
+        sorted_key[p] = _cell_key(cx, cy, cz)
+        bucket_start[order[p] + 1] += 1
     for t in range(1, bucket_start.shape[0]):
         bucket_start[t] += bucket_start[t - 1]
-    # fill each bucket from its end downward; afterwards bucket_start[b + 1] holds start(b)
+    # place each point at the end of its bucket's remaining room, from the last point
+    # down, so slots keep point order; afterwards bucket_start[b + 1] holds start(b)
+    slot = np.empty(n, dtype=np.int64)
     for p in range(n - 1, -1, -1):
-        b = _bucket(sorted_cell[p, 0], sorted_cell[p, 1], sorted_cell[p, 2], mask)
+        b = order[p]
         bucket_start[b + 1] -= 1
-        order[bucket_start[b + 1]] = p
+        slot[p] = bucket_start[b + 1]
     last = bucket_start.shape[0] - 1
     for t in range(last):
         bucket_start[t] = bucket_start[t + 1]
     bucket_start[last] = n
-    for k in range(n):
-        p = order[k]
+    keys = sorted_key.copy()
+    for p in range(n):
+        k = slot[p]
+        order[k] = p
+        sorted_key[k] = keys[p]
         for c in range(3):
             sorted_pos[k, c] = P[c, p]
-            sorted_cell[k, c] = np.int64(np.floor(P[c, p] * inv_cell))
+            sorted_pos[k, 3 + c] = rest[p, c]
 
 
 @njit(**KERNEL_OPTIONS)
-def build_list(P, rest, reach, radius, cell, bucket_start, order, sorted_pos, sorted_cell, pairs):
+def build_list(P, rest, reach, radius, cell, bucket_start, order, sorted_pos, sorted_key, pairs):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
-    are, which may exceed the capacity: then only the first ones were stored."""
+    are, which may exceed the capacity: then only the first ones were stored.
+    """
     n = P.shape[1]
     inv_cell = 1.0 / cell
-    _sort_into_cells(P, inv_cell, bucket_start, order, sorted_pos, sorted_cell)
+    _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_key)
     mask = bucket_start.shape[0] - 2
     radius2 = radius * radius
     reach2 = reach * reach
     capacity = pairs.shape[1]
     found = 0
+    slot_of = np.empty(n, dtype=np.int64)
     for k in range(n):
+        slot_of[order[k]] = k
+    # points in index order, so the list is sorted by its first point and the
+    # substep's pass over it walks the cloth in memory order
+    for pk in range(n):
+        k = slot_of[pk]
         x, y, z = sorted_pos[k, 0], sorted_pos[k, 1], sorted_pos[k, 2]
-        pk = order[k]
-        rx0, ry0, rz0 = rest[pk, 0], rest[pk, 1], rest[pk, 2]
+        rx, ry, rz = sorted_pos[k, 3], sorted_pos[k, 4], sorted_pos[k, 5]
         x0 = np.int64(np.floor((x - radius) * inv_cell))
         x1 = np.int64(np.floor((x + radius) * inv_cell))
         y0 = np.int64(np.floor((y - radius) * inv_cell))
@@ -146,23 +162,21 @@ def build_list(P, rest, reach, radius, cell, bucket_start, order, sorted_pos, so
             for cy in range(y0, y1 + 1):
                 for cz in range(z0, z1 + 1):
                     b = _bucket(cx, cy, cz, mask)
+                    key = _cell_key(cx, cy, cz)
                     for q in range(max(bucket_start[b], k + 1), bucket_start[b + 1]):
                         dx = x - sorted_pos[q, 0]
                         dy = y - sorted_pos[q, 1]
                         dz = z - sorted_pos[q, 2]
-                        if dx * dx + dy * dy + dz * dz >= radius2:
-                            continue
-                        if sorted_cell[q, 0] != cx or sorted_cell[q, 1] != cy or sorted_cell[q, 2] != cz:
-                            continue  # another cell hashed into this bucket; seen from its own cell
-                        pq = order[q]
-                        rx = rx0 - rest[pq, 0]
-                        ry = ry0 - rest[pq, 1]
-                        rz = rz0 - rest[pq, 2]
-                        if rx * rx + ry * ry + rz * rz < reach2:
+                        if dx * dx + dy * dy + dz * dz >= radius2 or sorted_key[q] != key:
+                            continue  # too far, or another cell hashed into this bucket
+                        ex = rx - sorted_pos[q, 3]
+                        ey = ry - sorted_pos[q, 4]
+                        ez = rz - sorted_pos[q, 5]
+                        if ex * ex + ey * ey + ez * ez < reach2:
                             continue
                         if found < capacity:
                             pairs[0, found] = pk
-                            pairs[1, found] = pq
+                            pairs[1, found] = order[q]
                         found += 1
     return found
 
@@ -193,7 +207,7 @@ def _drifted(P, reference, limit):
 
 @njit(**KERNEL_OPTIONS)
 def self_collide(P, rest, free, thickness, simulation_steps, bucket_start, order, sorted_pos,
-                 sorted_cell, reference, pairs, push, count, meta):
+                 sorted_key, reference, pairs, push, count, meta):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -207,11 +221,11 @@ def self_collide(P, rest, free, thickness, simulation_steps, bucket_start, order
     if meta[VALID] == 0 or _drifted(P, reference, 0.5 * skin):
         radius = reach + skin
         found = build_list(P, rest, reach, radius, CELL_FACTOR * radius, bucket_start, order,
-                           sorted_pos, sorted_cell, pairs)
+                           sorted_pos, sorted_key, pairs)
         if found > pairs.shape[1]:
             pairs = np.empty((2, 2 * found), dtype=np.int32)
             build_list(P, rest, reach, radius, CELL_FACTOR * radius, bucket_start, order,
-                       sorted_pos, sorted_cell, pairs)
+                       sorted_pos, sorted_key, pairs)
         meta[PAIRS] = found
         reference[:] = P
         meta[VALID] = 1

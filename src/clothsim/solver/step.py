@@ -61,14 +61,14 @@ def _from_planes(P, pos):
 
 @njit(cache=True, boundscheck=False)
 def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
-            start, end, count, valid, rest_length, limit, batch, spheres, planes,
+            start, end, count, valid, rest_length, limit, share, spheres, planes,
             self_collision, thickness, P, L, A, t, c, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
     Returns (largest squared distance of a point from ``center`` afterwards,
     inf when the state is no longer finite; the neighbour-list pairs array,
     replaced when it grew). ``lists`` is the tuple of self-collision buffers,
-    (bucket_start, order, sorted_pos, sorted_cell, reference, pairs, push,
+    (bucket_start, order, sorted_pos, sorted_key, reference, pairs, push,
     count, meta).
 
     Order per substep, as in the CS184 course code: forces, Verlet,
@@ -77,7 +77,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     it moves kinematically. The kernels work on (3, N) coordinate planes
     ``P`` (positions), ``L`` (last positions), ``A`` (accelerations).
     """
-    bucket_start, order, sorted_pos, sorted_cell, reference, pairs, push, hits, meta = lists
+    bucket_start, order, sorted_pos, sorted_key, reference, pairs, push, hits, meta = lists
     _to_planes(pos, P)
     _to_planes(last, L)
     dt2 = dt * dt
@@ -88,10 +88,10 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, bucket_start, order,
-                                    sorted_pos, sorted_cell, reference, pairs, push, hits, meta)
+                                    sorted_pos, sorted_key, reference, pairs, push, hits, meta)
         collide_spheres(P, L, free, spheres)
         collide_planes(P, L, free, planes)
-        provot(P, free, enabled, start, end, count, limit, batch, c)
+        provot(P, enabled, start, end, count, limit, share, c)
         if handle >= 0:
             _hold(P, handle, handle_pos)
     _from_planes(P, pos)
