@@ -1,7 +1,9 @@
 """Simulation throughput: substeps/s and point updates/s per standard scene and size.
 
 Prints one JSON object per measurement. Single-threaded (the kernels are
-serial). Each measurement is the median of ``--repeats`` runs of the same
+serial). The cost of the springs (forces and the Provot pass) and of
+self-collision per substep come from differences of runs with each switched
+off, measured back to back. Each measurement is the median of ``--repeats`` runs of the same
 stretch of simulated time from the scene's start, after a warm-up that
 compiles the kernels.
 
@@ -36,17 +38,23 @@ def sized(scene: str, n: int) -> list[str]:
     return out
 
 
-def measure(scene: str, n: int, seconds: float, self_collision: bool, repeats: int) -> float:
-    rates = []
+def measure(scene: str, n: int, seconds: float, self_collision: bool, repeats: int,
+            springs: bool = True) -> tuple[float, float]:
+    """(median substeps/s, neighbour-list rebuilds per 100 substeps)"""
+    rates, rebuilds = [], []
     for _ in range(repeats):
         sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n))
         sim.params.self_collision = self_collision and sim.params.self_collision
+        if not springs:
+            sim.params.enable_structural = sim.params.enable_shearing = sim.params.enable_bending = False
         frames = max(1, round(seconds * sim.params.frames_per_sec))
         start = time.perf_counter()
         for _ in range(frames):
             sim.step()
-        rates.append(frames * sim.params.simulation_steps / (time.perf_counter() - start))
-    return statistics.median(rates)
+        substeps = frames * sim.params.simulation_steps
+        rates.append(substeps / (time.perf_counter() - start))
+        rebuilds.append(100.0 * sim.neighbour_list_rebuilds / substeps)
+    return statistics.median(rates), statistics.median(rebuilds)
 
 
 def main() -> None:
@@ -61,12 +69,17 @@ def main() -> None:
     for n in (int(s) for s in args.sizes.split(",")):
         for scene in args.scenes.split(","):
             seconds = SECONDS.get(n, 0.1)
-            with_self = measure(scene, n, seconds, True, args.repeats)
-            without = measure(scene, n, seconds, False, args.repeats)
+            with_self, rebuilds = measure(scene, n, seconds, True, args.repeats)
+            without, _ = measure(scene, n, seconds, False, args.repeats)
+            bare, _ = measure(scene, n, seconds, False, args.repeats, springs=False)
+            us = 1e6 / with_self, 1e6 / without, 1e6 / bare  # microseconds per substep
             emit({"bench": "simulate", "scene": scene, "points": n * n, "grid": f"{n}x{n}",
                   "simulated_s": seconds, "substeps_per_s": round(with_self, 1),
                   "point_updates_per_s": round(with_self * n * n),
                   "substeps_per_s_no_self_collision": round(without, 1),
+                  "springs_us_per_substep": round(us[1] - us[2], 1),
+                  "self_collision_us_per_substep": round(us[0] - us[1], 1),
+                  "list_rebuilds_per_100_substeps": round(rebuilds, 1),
                   "realtime_factor": round(with_self / 2700.0, 3),
                   "peak_rss_mib": round(peak_rss_mib(), 1), **info})
 

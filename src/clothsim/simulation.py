@@ -180,6 +180,11 @@ class Simulation:
         self._handle = -1
 
     @property
+    def neighbour_list_rebuilds(self) -> int:
+        """how often self-collision rebuilt its neighbour list since the start"""
+        return self._scratch.lists.rebuilds
+
+    @property
     def grabbed(self) -> int:
         """index of the held point, or -1"""
         return self._handle
