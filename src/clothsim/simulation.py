@@ -14,7 +14,7 @@ from .export import write_obj
 from .mesh import compute_normals
 from .model import ClothModel, build_model
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
-from .solver.grid import SET_KIND, build_stencil
+from .solver.grid import CHUNK, SET_KIND, build_stencil
 from .solver.self_collide import NeighbourList
 
 RUNAWAY_FACTOR = 100.0
@@ -90,8 +90,8 @@ class _Scratch:
         self.stencil = build_stencil(model)
         self.free = (~model.pinned).astype(np.float64)
         self.planes = np.zeros((3, 3, n))  # positions, last positions, accelerations
-        self.t = np.zeros((3, n))
-        self.c = np.zeros((6, n))
+        self.t = np.zeros((3, CHUNK))
+        self.c = np.zeros((6, CHUNK))
         self.lists = NeighbourList(n)
 
     def list_buffers(self) -> tuple:

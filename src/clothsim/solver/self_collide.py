@@ -63,9 +63,6 @@ class NeighbourList:
         self.count = np.zeros(n)
         self.meta = np.zeros(META_SIZE, dtype=np.int64)
 
-    def invalidate(self) -> None:
-        self.meta[VALID] = 0
-
     @property
     def num_pairs(self) -> int:
         """pairs within reach + skin at the last rebuild"""

@@ -77,7 +77,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     it moves kinematically. The kernels work on (3, N) coordinate planes
     ``P`` (positions), ``L`` (last positions), ``A`` (accelerations).
     """
-    bucket_start, order, sorted_pos, sorted_key, reference, pairs, push, hits, meta = lists
+    bucket_start, order, sorted_pos, sorted_key, reference, pairs, push, contacts, meta = lists
     _to_planes(pos, P)
     _to_planes(last, L)
     dt2 = dt * dt
@@ -88,7 +88,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, bucket_start, order,
-                                    sorted_pos, sorted_key, reference, pairs, push, hits, meta)
+                                    sorted_pos, sorted_key, reference, pairs, push, contacts, meta)
         collide_spheres(P, L, free, spheres)
         collide_planes(P, L, free, planes)
         provot(P, enabled, start, end, count, limit, share, c)
