@@ -91,7 +91,8 @@ def _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_
 
     Afterwards bucket b holds sorted slots ``bucket_start[b] : bucket_start[b+1]``;
     ``order[k]`` is the point in slot k, and its position, rest position and
-    cell key are copied to slot k so that a neighbour query reads contiguous memory.
+    cell key are copied to slot k so that a neighbour query reads contiguous
+    memory. Returns the inverse of ``order``: the slot of each point.
     """
     n = P.shape[1]
     mask = bucket_start.shape[0] - 2
@@ -124,6 +125,7 @@ def _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_
         for c in range(3):
             sorted_pos[k, c] = P[c, p]
             sorted_pos[k, 3 + c] = rest[p, c]
+    return slot
 
 
 @njit(**KERNEL_OPTIONS)
@@ -134,15 +136,12 @@ def build_list(P, rest, reach, radius, cell, bucket_start, order, sorted_pos, so
     """
     n = P.shape[1]
     inv_cell = 1.0 / cell
-    _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_key)
+    slot_of = _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_key)
     mask = bucket_start.shape[0] - 2
     radius2 = radius * radius
     reach2 = reach * reach
     capacity = pairs.shape[1]
     found = 0
-    slot_of = np.empty(n, dtype=np.int64)
-    for k in range(n):
-        slot_of[order[k]] = k
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
     for pk in range(n):
