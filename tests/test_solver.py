@@ -9,7 +9,7 @@ import pytest
 from clothsim.model import build_model
 from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
-from clothsim.solver.grid import NO_LIMIT, SET_KIND, SET_STEP, build_stencil, provot, spring_accelerations, verlet
+from clothsim.solver.grid import BLOCK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, provot, spring_accelerations, verlet
 from clothsim.solver.self_collide import NeighbourList, self_collide
 
 
@@ -86,8 +86,8 @@ def test_verlet_formula_and_pins():
 def run_provot(m, pos, enabled):
     st = build_stencil(m)
     P = planes(pos)
-    provot(P, np.asarray(enabled), st.start, st.end, st.count, st.limit, st.share,
-           np.zeros((6, m.num_points)))
+    provot(P, np.asarray(enabled), st.start, st.end, st.count, st.limit, st.share, st.runs,
+           st.run_span, np.zeros((6, BLOCK)), np.zeros(m.num_points // BLOCK + 2))
     return P.T.copy()
 
 
@@ -138,6 +138,41 @@ def test_provot_is_a_sequential_pass():
     for enabled in ([True] * 6, [True, True, False, False, True, True], [False] * 6):
         np.testing.assert_allclose(run_provot(m, pos, enabled), reference_provot(m, pos, enabled),
                                    rtol=0, atol=1e-11)
+
+
+def test_provot_finds_sparse_stretch_on_a_large_grid():
+    """a few displaced points among thousands of springs at rest: the kernel, which
+    only corrects blocks with a spring over the limit and skips the rows a batch does
+    not own, still matches the sequential pass, and springs at rest are untouched"""
+    m = grid_model(40, 30, pinned=[(0, 0), (39, 0)])
+    rng = np.random.default_rng(11)
+    pos = m.rest_positions.copy()
+    moved = rng.choice(m.num_points, size=6, replace=False)
+    pos[moved] += rng.normal(scale=0.2, size=(6, 3))
+    after = run_provot(m, pos, [True] * 6)
+    np.testing.assert_allclose(after, reference_provot(m, pos, [True] * 6), rtol=0, atol=1e-11)
+    assert not np.allclose(after[moved], pos[moved])
+    far = np.ones(m.num_points, bool)
+    grid_index = np.arange(m.num_points).reshape(30, 40)
+    for p in moved:
+        r, i = divmod(int(p), 40)
+        far[grid_index[max(r - 2, 0):r + 3, max(i - 2, 0):i + 3].ravel()] = False
+    np.testing.assert_array_equal(after[far], pos[far])
+
+
+def test_provot_runs_cover_every_batch_spring():
+    """the ranges the pass walks hold every spring of the batch"""
+    m = grid_model(40, 30)
+    st = build_stencil(m)
+    for s in range(6):
+        for half in range(2):
+            walked = np.zeros(m.num_points, bool)
+            for first, stop in st.runs[st.run_span[s, half, 0]:st.run_span[s, half, 1]]:
+                walked[first:stop] = True
+            on = st.limit[s, half] < NO_LIMIT
+            assert not (on & ~walked).any(), (s, half)
+            if SET_STEP[s][0] > 0:  # vertical batches own every other row and skip the rest
+                assert walked.sum() < 0.6 * on.size
 
 
 def test_provot_batches_share_no_point():

@@ -14,7 +14,7 @@ from .export import write_obj
 from .mesh import compute_normals
 from .model import ClothModel, build_model
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
-from .solver.grid import CHUNK, SET_KIND, build_stencil
+from .solver.grid import BLOCK, CHUNK, SET_KIND, build_stencil
 from .solver.self_collide import NeighbourList
 
 RUNAWAY_FACTOR = 100.0
@@ -91,7 +91,8 @@ class _Scratch:
         self.free = (~model.pinned).astype(np.float64)
         self.planes = np.zeros((3, 3, n))  # positions, last positions, accelerations
         self.t = np.zeros((3, CHUNK))
-        self.c = np.zeros((6, CHUNK))
+        self.c = np.zeros((6, BLOCK))
+        self.over = np.zeros(n // BLOCK + 2)
         self.lists = NeighbourList(n)
 
     def list_buffers(self) -> tuple:
@@ -203,9 +204,9 @@ class Simulation:
             self.state.positions, self.state.last_positions, m.rest_positions, s.free,
             np.asarray(p.gravity, dtype=np.float64), k_over_m, p.enabled[SET_KIND],
             1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
-            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share,
+            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share, st.runs, st.run_span,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
-            bool(p.self_collision), m.thickness, s.planes[0], s.planes[1], s.planes[2], s.t, s.c,
+            bool(p.self_collision), m.thickness, s.planes[0], s.planes[1], s.planes[2], s.t, s.c, s.over,
             s.list_buffers(), self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt

@@ -44,6 +44,10 @@ CHUNK = 512
 """springs per block of the force and Provot loops: their scratch stays in L1"""
 NO_LIMIT = 1e30
 """the Provot limit of a spring outside the current batch: never reached"""
+BLOCK = 64
+"""springs the Provot pass checks together before it computes any correction"""
+RUN_GAP = 16
+"""Provot batch runs closer than this many springs are merged into one run"""
 
 
 @dataclass(frozen=True)
@@ -67,6 +71,12 @@ class Stencil:
     share: np.ndarray
     """fraction of a Provot correction that goes to each end, (6, 2, N): half
     each, all to the free end when the other is pinned, none when both are"""
+    runs: np.ndarray
+    """(first, stop) ranges of p, int64 (R, 2), that hold the springs of a
+    Provot batch; a vertical set's batch is every other row, so its pass
+    skips the rows it does not own"""
+    run_span: np.ndarray
+    """batch (s, h) owns ``runs[run_span[s, h, 0]:run_span[s, h, 1]]``, int64 (6, 2, 2)"""
 
 
 def build_stencil(model: ClothModel) -> Stencil:
@@ -99,9 +109,29 @@ def build_stencil(model: ClothModel) -> Stencil:
         for half in range(2):
             on = ok & (colour == half)
             limit[s, half, p[on]] = MAX_STRETCH * rest[s, p[on]]
-    for arr in (start, end, count, valid, rest, limit, share):
+    runs, run_span = _batch_runs(limit)
+    for arr in (start, end, count, valid, rest, limit, share, runs, run_span):
         arr.setflags(write=False)
-    return Stencil(start, end, count, valid, rest, limit, share)
+    return Stencil(start, end, count, valid, rest, limit, share, runs, run_span)
+
+
+def _batch_runs(limit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Contiguous ranges of each batch's springs; gaps under RUN_GAP are merged,
+    so a horizontal set's alternating batch is one range with limits that are
+    never reached in between."""
+    runs: list[tuple[int, int]] = []
+    span = np.zeros((6, 2, 2), dtype=np.int64)
+    for s in range(6):
+        for half in range(2):
+            span[s, half, 0] = len(runs)
+            on = np.flatnonzero(limit[s, half] < NO_LIMIT)
+            if len(on):
+                breaks = np.flatnonzero(np.diff(on) > RUN_GAP)
+                firsts = np.concatenate([[on[0]], on[breaks + 1]])
+                lasts = np.concatenate([on[breaks], [on[-1]]])
+                runs.extend(zip(firsts.tolist(), (lasts + 1).tolist()))
+            span[s, half, 1] = len(runs)
+    return np.array(runs, dtype=np.int64).reshape(-1, 2), span
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -166,7 +196,7 @@ def verlet(P, L, A, free, keep, dt2):
 
 
 @njit(**KERNEL_OPTIONS)
-def provot(P, enabled, start, end, count, limit, share, c):
+def provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over):
     """Shorten every enabled spring longer than its limit (1.1x rest) back to it.
 
     One Gauss-Seidel pass, in an order where each batch holds springs that
@@ -174,37 +204,68 @@ def provot(P, enabled, start, end, count, limit, share, c):
     a row for a horizontal one). Within a batch that gives the same result as
     any sequential order, so the corrections are computed together (and
     vectorised) and applied after; springs outside the batch have a limit
-    they never reach. ``c`` is (6, CHUNK) scratch.
+    they never reach.
+
+    Few springs are over the limit at any time, so a run of a batch is first
+    only checked, block by block of BLOCK springs, which needs no square root
+    and stores nothing per spring; then only the blocks with a spring over
+    are corrected. Checking all blocks before correcting any keeps the check
+    loop free of calls, which would slow it down twofold. ``c`` is (6, BLOCK)
+    scratch, ``over`` holds a count per block of the longest run.
     """
     x, y, z = P[0], P[1], P[2]
     for s in range(6):
         if not enabled[s]:
             continue
-        oa, ob, m = start[s], end[s], count[s]
+        oa, ob = start[s], end[s]
         for half in range(2):
-            for lo in range(0, m, CHUNK):
-                n = min(CHUNK, m - lo)
-                xa, ya, za = x[oa + lo:], y[oa + lo:], z[oa + lo:]
-                xb, yb, zb = x[ob + lo:], y[ob + lo:], z[ob + lo:]
-                lim, wa, wb = limit[s, half, lo:], share[s, 0, lo:], share[s, 1, lo:]
-                for p in range(n):
-                    dx = xb[p] - xa[p]
-                    dy = yb[p] - ya[p]
-                    dz = zb[p] - za[p]
-                    l2 = dx * dx + dy * dy + dz * dz
-                    e = 1.0 - lim[p] * _inv_length(l2)
-                    e = e if l2 > lim[p] * lim[p] else 0.0
-                    ea = e * wa[p]
-                    eb = e * wb[p]
-                    c[0, p] = ea * dx
-                    c[1, p] = ea * dy
-                    c[2, p] = ea * dz
-                    c[3, p] = eb * dx
-                    c[4, p] = eb * dy
-                    c[5, p] = eb * dz
-                for d in range(3):
-                    pa, pb, ca, cb = P[d, oa + lo:], P[d, ob + lo:], c[d], c[3 + d]
+            lim_h = limit[s, half]
+            for r in range(run_span[s, half, 0], run_span[s, half, 1]):
+                first, stop = runs[r, 0], runs[r, 1]
+                blocks = 0
+                for lo in range(first, stop, BLOCK):
+                    n = min(BLOCK, stop - lo)
+                    xa, ya, za = x[oa + lo:], y[oa + lo:], z[oa + lo:]
+                    xb, yb, zb = x[ob + lo:], y[ob + lo:], z[ob + lo:]
+                    lim = lim_h[lo:]
+                    hits = 0.0  # a sum of selects vectorises; a running max does not
                     for p in range(n):
-                        pa[p] += ca[p]
-                    for p in range(n):
-                        pb[p] -= cb[p]
+                        dx = xb[p] - xa[p]
+                        dy = yb[p] - ya[p]
+                        dz = zb[p] - za[p]
+                        hits += 1.0 if dx * dx + dy * dy + dz * dz > lim[p] * lim[p] else 0.0
+                    over[blocks] = hits
+                    blocks += 1
+                for b in range(blocks):
+                    if over[b] > 0.0:
+                        lo = first + b * BLOCK
+                        _correct_block(P, oa + lo, ob + lo, min(BLOCK, stop - lo), lim_h[lo:],
+                                       share[s, 0, lo:], share[s, 1, lo:], c)
+
+
+@njit(**KERNEL_OPTIONS)
+def _correct_block(P, a0, b0, n, lim, wa, wb, c):
+    """The Provot corrections of n springs from points a0+p to b0+p that share no point."""
+    xa, ya, za = P[0, a0:], P[1, a0:], P[2, a0:]
+    xb, yb, zb = P[0, b0:], P[1, b0:], P[2, b0:]
+    for p in range(n):
+        dx = xb[p] - xa[p]
+        dy = yb[p] - ya[p]
+        dz = zb[p] - za[p]
+        l2 = dx * dx + dy * dy + dz * dz
+        e = 1.0 - lim[p] * _inv_length(l2)
+        e = e if l2 > lim[p] * lim[p] else 0.0
+        ea = e * wa[p]
+        eb = e * wb[p]
+        c[0, p] = ea * dx
+        c[1, p] = ea * dy
+        c[2, p] = ea * dz
+        c[3, p] = eb * dx
+        c[4, p] = eb * dy
+        c[5, p] = eb * dz
+    for d in range(3):
+        pa, pb, ca, cb = P[d, a0:], P[d, b0:], c[d], c[3 + d]
+        for p in range(n):
+            pa[p] += ca[p]
+        for p in range(n):
+            pb[p] -= cb[p]

@@ -61,8 +61,8 @@ def _from_planes(P, pos):
 
 @njit(cache=True, boundscheck=False)
 def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
-            start, end, count, valid, rest_length, limit, share, spheres, planes,
-            self_collision, thickness, P, L, A, t, c, lists, handle, handle_pos, center):
+            start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
+            self_collision, thickness, P, L, A, t, c, over, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
     Returns (largest squared distance of a point from ``center`` afterwards,
@@ -91,7 +91,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
                                     sorted_pos, sorted_key, reference, pairs, push, contacts, meta)
         collide_spheres(P, L, free, spheres)
         collide_planes(P, L, free, planes)
-        provot(P, enabled, start, end, count, limit, share, c)
+        provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over)
         if handle >= 0:
             _hold(P, handle, handle_pos)
     _from_planes(P, pos)
