@@ -225,8 +225,7 @@ def _self_collide(pos, rest, thickness, steps=1, pinned=None, lists=None):
     free = np.ones(n) if pinned is None else (~pinned).astype(float)
     x = NeighbourList(n) if lists is None else lists
     P = planes(pos)
-    x.pairs, hits = self_collide(P, rest, free, thickness, steps, x.bucket_start, x.order, x.sorted_pos,
-                                 x.sorted_key, x.reference, x.pairs, x.push, x.count, x.meta)
+    x.pairs, hits = self_collide(P, rest, free, thickness, steps, np.inf, *x.buffers())
     pos[:] = P.T
     return hits
 
@@ -287,3 +286,31 @@ def test_self_collision_matches_brute_force_as_points_move():
         if step % 10 == 9:
             pos[rng.integers(n)] = rng.uniform(0, 0.3, 3)  # one point jumps
     assert 1 < lists.rebuilds < 40
+
+
+def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():
+    """clusters metres apart would need far more cells than the buffer holds: the
+    grid coarsens and still finds exactly the brute-force pairs"""
+    rng = np.random.default_rng(3)
+    centres = rng.uniform(0, 50, size=(8, 3))
+    pos = (centres[:, None, :] + rng.uniform(0, 0.1, size=(8, 25, 3))).reshape(-1, 3)
+    rest = rng.uniform(0, 30, size=pos.shape)
+    t = 0.01
+    assert _self_collide(pos.copy(), rest, t, steps=10 ** 9) == brute_force_pairs(pos, rest, 2 * t) > 0
+
+
+def test_self_collision_skips_a_blown_up_state():
+    """non-finite positions or a spread beyond the span build no list and push nothing"""
+    pos = np.array([[0.0, 0, 0], [0.001, 0, 0], [np.nan, 0, 0]])
+    rest = np.array([[0.0, 0, 0], [5.0, 0, 0], [9.0, 0, 0]])
+    x = NeighbourList(3)
+    P = planes(pos)
+    x.pairs, hits = self_collide(P, rest, np.ones(3), 0.01, 1, np.inf, *x.buffers())
+    assert hits == 0 and x.rebuilds == 0
+    pos[2] = [1e6, 0, 0]
+    P = planes(pos)
+    x.pairs, hits = self_collide(P, rest, np.ones(3), 0.01, 1, 1e3, *x.buffers())
+    assert hits == 0 and x.rebuilds == 0
+    np.testing.assert_array_equal(P.T, pos)
+    x.pairs, hits = self_collide(P, rest, np.ones(3), 0.01, 1, 1e7, *x.buffers())
+    assert hits == 1 and x.rebuilds == 1

@@ -95,10 +95,6 @@ class _Scratch:
         self.over = np.zeros(n // BLOCK + 2)
         self.lists = NeighbourList(n)
 
-    def list_buffers(self) -> tuple:
-        x = self.lists
-        return (x.bucket_start, x.order, x.sorted_pos, x.sorted_key, x.reference, x.pairs,
-                x.push, x.count, x.meta)
 
 
 @dataclass
@@ -206,8 +202,8 @@ class Simulation:
             1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
             st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share, st.runs, st.run_span,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
-            bool(p.self_collision), m.thickness, s.planes[0], s.planes[1], s.planes[2], s.t, s.c, s.over,
-            s.list_buffers(), self._handle, self._handle_pos, self._center)
+            bool(p.self_collision), m.thickness, 2.0 * np.sqrt(self._runaway2), s.planes[0], s.planes[1], s.planes[2], s.t, s.c, s.over,
+            s.lists.buffers(), self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None

@@ -12,9 +12,12 @@ has moved more than ``skin/2``. Two unlisted points started at least
 common motion, so they are still farther apart than ``reach``; the pairs
 found are exactly those a hash rebuilt every substep would find.
 
-The hash is a counting sort of the points by hashed cell, so a rebuild is a
-few linear passes. A point looks in every cell that its search sphere
-overlaps, its own and the adjacent ones, so no pair is missed at a cell border.
+The spatial hash is a dense grid of cells over the cloth's bounding box (a
+perfect hash: no two cells share a bucket, so no key is checked), filled
+by a counting sort, so a rebuild is a few linear passes. A point looks in
+every cell that its search sphere overlaps, its own and the adjacent ones,
+so no pair is missed at a cell border; cells adjacent along x are adjacent
+in memory, so each row of them is one range of candidates.
 Pairs already closer than ``reach`` at rest (neighbours on a fine grid) never
 enter the list: the C++ course code pushes them apart, and its fine cloths
 then fight their own springs and boil.
@@ -33,35 +36,36 @@ SKIN_FACTOR = 0.5
 """skin of the neighbour list as a fraction of the reach: larger lists, rarer rebuilds"""
 
 CELL_FACTOR = 2.0
-"""hash cell size over the search radius: each point then looks in 2x2x2 cells"""
+"""cell size over the search radius: each point then looks in 2x2 rows of 2 cells"""
+
+CELLS_PER_POINT = 8
+"""most grid cells per point; a cloth spread wider gets coarser cells"""
 
 # fields of the ``meta`` int64 array that carries the list's state between calls
 PAIRS, VALID, REBUILDS = 0, 1, 2
 META_SIZE = 3
 
 
-def table_size(num_points: int) -> int:
-    """Power of two at least twice the point count, so buckets stay short."""
-    size = 1
-    while size < 2 * num_points:
-        size *= 2
-    return size
-
-
 class NeighbourList:
-    """The buffers of the hash and the neighbour list, allocated once per cloth."""
+    """The buffers of the cell grid and the neighbour list, allocated once per cloth."""
 
     def __init__(self, num_points: int) -> None:
         n = num_points
-        self.bucket_start = np.zeros(table_size(n) + 1, dtype=np.int64)
+        self.cell_start = np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64)
+        self.cell_of = np.zeros(n, dtype=np.int64)
         self.order = np.zeros(n, dtype=np.int64)
-        self.sorted_pos = np.zeros((n, 6))  # position and rest position per slot
-        self.sorted_key = np.zeros(n, dtype=np.int64)
+        self.slot = np.zeros(n, dtype=np.int64)
+        self.sorted_pos = np.zeros((6, n))  # position and rest position per slot
         self.reference = np.zeros((3, n))
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
         self.push = np.zeros((3, n))
         self.count = np.zeros(n)
         self.meta = np.zeros(META_SIZE, dtype=np.int64)
+
+    def buffers(self) -> tuple:
+        """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
+        return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
+                self.reference, self.pairs, self.push, self.count, self.meta)
 
     @property
     def num_pairs(self) -> int:
@@ -73,107 +77,132 @@ class NeighbourList:
         return int(self.meta[REBUILDS])
 
 
-@njit(cache=True, inline="always")
-def _bucket(cx, cy, cz, mask):
-    h = (cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)
-    return h & mask
+@njit(cache=True, boundscheck=False)
+def _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, sorted_pos):
+    """Counting-sort the points into a dense grid of cells over their bounding box.
 
+    Cells are ``CELL_FACTOR * radius`` wide where the buffer allows, coarser where the cloth
+    is spread wider. Cell (ix, iy, iz) is number ``(iz*ny + iy)*nx + ix``, so
+    cells next to each other along x are next to each other in the sorted
+    order and a query reads a row of three cells as one range. Afterwards
+    cell c holds slots ``cell_start[c] : cell_start[c+1]``, ``order[k]`` is
+    the point in slot k, ``slot`` the inverse, and the point's position and
+    rest position are copied to column k of ``sorted_pos`` (6, N).
 
-@njit(cache=True, inline="always")
-def _cell_key(cx, cy, cz):
-    """One integer per cell, unique while |cell index| < 2**20 on every axis."""
-    return (cx & 0x1FFFFF) | ((cy & 0x1FFFFF) << 21) | ((cz & 0x1FFFFF) << 42)
-
-
-@njit(**KERNEL_OPTIONS)
-def _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_key):
-    """Counting-sort the points by hashed cell.
-
-    Afterwards bucket b holds sorted slots ``bucket_start[b] : bucket_start[b+1]``;
-    ``order[k]`` is the point in slot k, and its position, rest position and
-    cell key are copied to slot k so that a neighbour query reads contiguous
-    memory. Returns the inverse of ``order``: the slot of each point.
+    Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
+    the points are not finite or spread wider than ``span``: no list then.
+    Compiled without fastmath, which would let LLVM assume the finiteness
+    check away.
     """
     n = P.shape[1]
-    mask = bucket_start.shape[0] - 2
-    bucket_start[:] = 0
+    lo = np.empty(3)
+    hi = np.empty(3)
+    total = 0.0
+    for c in range(3):
+        a, b = np.inf, -np.inf
+        xc = P[c]
+        for p in range(n):
+            a = min(a, xc[p])
+            b = max(b, xc[p])
+            total += xc[p]  # NaN and inf survive a sum; min and max may skip NaN
+        lo[c], hi[c] = a, b
+    grid = np.zeros(7)
+    ext = max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])
+    if not (np.isfinite(total) and ext <= span):
+        return grid
+    size = CELL_FACTOR * radius
+    budget = cell_start.shape[0] - 1
+    while True:
+        nx = np.int64((hi[0] - lo[0]) / size) + 1
+        ny = np.int64((hi[1] - lo[1]) / size) + 1
+        nz = np.int64((hi[2] - lo[2]) / size) + 1
+        if nx * ny * nz <= budget:
+            break
+        size *= 1.25
+    cells = nx * ny * nz
+    inv = 1.0 / size
+    cell_start[:cells + 1] = 0
     for p in range(n):
-        cx = np.int64(np.floor(P[0, p] * inv_cell))
-        cy = np.int64(np.floor(P[1, p] * inv_cell))
-        cz = np.int64(np.floor(P[2, p] * inv_cell))
-        order[p] = _bucket(cx, cy, cz, mask)  # staged here, replaced by the slot order below
-        sorted_key[p] = _cell_key(cx, cy, cz)
-        bucket_start[order[p] + 1] += 1
-    for t in range(1, bucket_start.shape[0]):
-        bucket_start[t] += bucket_start[t - 1]
-    # place each point at the end of its bucket's remaining room, from the last point
-    # down, so slots keep point order; afterwards bucket_start[b + 1] holds start(b)
-    slot = np.empty(n, dtype=np.int64)
+        ix = max(min(np.int64((P[0, p] - lo[0]) * inv), nx - 1), 0)
+        iy = max(min(np.int64((P[1, p] - lo[1]) * inv), ny - 1), 0)
+        iz = max(min(np.int64((P[2, p] - lo[2]) * inv), nz - 1), 0)
+        cell = (iz * ny + iy) * nx + ix
+        cell_of[p] = cell
+        cell_start[cell + 1] += 1
+    for c in range(1, cells + 1):
+        cell_start[c] += cell_start[c - 1]
+    # place each point at the end of its cell's remaining room, from the last
+    # point down, so slots keep point order; then shift the starts back
     for p in range(n - 1, -1, -1):
-        b = order[p]
-        bucket_start[b + 1] -= 1
-        slot[p] = bucket_start[b + 1]
-    last = bucket_start.shape[0] - 1
-    for t in range(last):
-        bucket_start[t] = bucket_start[t + 1]
-    bucket_start[last] = n
-    keys = sorted_key.copy()
+        c = cell_of[p] + 1
+        cell_start[c] -= 1
+        slot[p] = cell_start[c]
+    for c in range(cells):
+        cell_start[c] = cell_start[c + 1]
+    cell_start[cells] = n
     for p in range(n):
         k = slot[p]
         order[k] = p
-        sorted_key[k] = keys[p]
         for c in range(3):
-            sorted_pos[k, c] = P[c, p]
-            sorted_pos[k, 3 + c] = rest[p, c]
-    return slot
+            sorted_pos[c, k] = P[c, p]
+            sorted_pos[3 + c, k] = rest[p, c]
+    grid[0], grid[1], grid[2], grid[3] = lo[0], lo[1], lo[2], size
+    grid[4], grid[5], grid[6] = nx, ny, nz
+    return grid
 
 
 @njit(**KERNEL_OPTIONS)
-def build_list(P, rest, reach, radius, cell, bucket_start, order, sorted_pos, sorted_key, pairs):
+def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, sorted_pos, pairs):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
     are, which may exceed the capacity: then only the first ones were stored.
+    Returns -1 when the points are not finite or spread wider than ``span``.
     """
     n = P.shape[1]
-    inv_cell = 1.0 / cell
-    slot_of = _sort_into_cells(P, rest, inv_cell, bucket_start, order, sorted_pos, sorted_key)
-    mask = bucket_start.shape[0] - 2
+    grid = _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, sorted_pos)
+    size = grid[3]
+    if size == 0.0:
+        return -1
+    x0, y0, z0, inv = grid[0], grid[1], grid[2], 1.0 / size
+    nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
     radius2 = radius * radius
     reach2 = reach * reach
     capacity = pairs.shape[1]
+    sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
+    rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
     for pk in range(n):
-        k = slot_of[pk]
-        x, y, z = sorted_pos[k, 0], sorted_pos[k, 1], sorted_pos[k, 2]
-        rx, ry, rz = sorted_pos[k, 3], sorted_pos[k, 4], sorted_pos[k, 5]
-        x0 = np.int64(np.floor((x - radius) * inv_cell))
-        x1 = np.int64(np.floor((x + radius) * inv_cell))
-        y0 = np.int64(np.floor((y - radius) * inv_cell))
-        y1 = np.int64(np.floor((y + radius) * inv_cell))
-        z0 = np.int64(np.floor((z - radius) * inv_cell))
-        z1 = np.int64(np.floor((z + radius) * inv_cell))
-        for cx in range(x0, x1 + 1):
-            for cy in range(y0, y1 + 1):
-                for cz in range(z0, z1 + 1):
-                    b = _bucket(cx, cy, cz, mask)
-                    key = _cell_key(cx, cy, cz)
-                    for q in range(max(bucket_start[b], k + 1), bucket_start[b + 1]):
-                        dx = x - sorted_pos[q, 0]
-                        dy = y - sorted_pos[q, 1]
-                        dz = z - sorted_pos[q, 2]
-                        if dx * dx + dy * dy + dz * dz >= radius2 or sorted_key[q] != key:
-                            continue  # too far, or another cell hashed into this bucket
-                        ex = rx - sorted_pos[q, 3]
-                        ey = ry - sorted_pos[q, 4]
-                        ez = rz - sorted_pos[q, 5]
-                        if ex * ex + ey * ey + ez * ez < reach2:
-                            continue
-                        if found < capacity:
-                            pairs[0, found] = pk
-                            pairs[1, found] = order[q]
-                        found += 1
+        k = slot[pk]
+        x, y, z = sx[k], sy[k], sz[k]
+        ax, ay, az = rx[k], ry[k], rz[k]
+        # cells the search sphere overlaps; floor, then clamp into the grid
+        ix0 = max(np.int64(np.floor((x - radius - x0) * inv)), 0)
+        ix1 = min(np.int64((x + radius - x0) * inv), nx - 1)
+        iy0 = max(np.int64(np.floor((y - radius - y0) * inv)), 0)
+        iy1 = min(np.int64((y + radius - y0) * inv), ny - 1)
+        iz0 = max(np.int64(np.floor((z - radius - z0) * inv)), 0)
+        iz1 = min(np.int64((z + radius - z0) * inv), nz - 1)
+        for iz in range(iz0, iz1 + 1):
+            for iy in range(iy0, iy1 + 1):
+                row = (iz * ny + iy) * nx
+                # each pair once: only slots after this point's own
+                for q in range(max(cell_start[row + ix0], k + 1), cell_start[row + ix1 + 1]):
+                    dx = x - sx[q]
+                    dy = y - sy[q]
+                    dz = z - sz[q]
+                    if dx * dx + dy * dy + dz * dz >= radius2:
+                        continue
+                    ex = ax - rx[q]
+                    ey = ay - ry[q]
+                    ez = az - rz[q]
+                    if ex * ex + ey * ey + ez * ez < reach2:
+                        continue
+                    if found < capacity:
+                        pairs[0, found] = pk
+                        pairs[1, found] = order[q]
+                    found += 1
     return found
 
 
@@ -202,26 +231,31 @@ def _drifted(P, reference, limit):
 
 
 @njit(**KERNEL_OPTIONS)
-def self_collide(P, rest, free, thickness, simulation_steps, bucket_start, order, sorted_pos,
-                 sorted_key, reference, pairs, push, count, meta):
+def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
+                 sorted_pos, reference, pairs, push, count, meta):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
     colliding neighbours and divided by ``simulation_steps``; pinned points
     (``free`` 0) stay. Returns (pairs array, number of colliding pairs); the
-    array is a new one when the list outgrew it.
+    array is a new one when the list outgrew it. When the points are spread
+    wider than ``span`` [m] (a run that blew up) no list is built and nothing
+    is pushed.
     """
     n = P.shape[1]
     reach = 2.0 * thickness
     skin = SKIN_FACTOR * reach
     if meta[VALID] == 0 or _drifted(P, reference, 0.5 * skin):
         radius = reach + skin
-        found = build_list(P, rest, reach, radius, CELL_FACTOR * radius, bucket_start, order,
-                           sorted_pos, sorted_key, pairs)
+        found = build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
+                           sorted_pos, pairs)
+        if found < 0:
+            meta[VALID] = 0
+            return pairs, 0
         if found > pairs.shape[1]:
             pairs = np.empty((2, 2 * found), dtype=np.int32)
-            build_list(P, rest, reach, radius, CELL_FACTOR * radius, bucket_start, order,
-                       sorted_pos, sorted_key, pairs)
+            build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
+                       sorted_pos, pairs)
         meta[PAIRS] = found
         reference[:] = P
         meta[VALID] = 1

@@ -62,14 +62,14 @@ def _from_planes(P, pos):
 @njit(cache=True, boundscheck=False)
 def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
             start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
-            self_collision, thickness, P, L, A, t, c, over, lists, handle, handle_pos, center):
+            self_collision, thickness, span, P, L, A, t, c, over, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
     Returns (largest squared distance of a point from ``center`` afterwards,
     inf when the state is no longer finite; the neighbour-list pairs array,
     replaced when it grew). ``lists`` is the tuple of self-collision buffers,
-    (bucket_start, order, sorted_pos, sorted_key, reference, pairs, push,
-    count, meta).
+    ``NeighbourList.buffers()``; ``span`` [m] is the spread of the points
+    beyond which the run has blown up and self-collision stops looking.
 
     Order per substep, as in the CS184 course code: forces, Verlet,
     self-collision, sphere and plane collisions, then the Provot pass.
@@ -77,7 +77,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     it moves kinematically. The kernels work on (3, N) coordinate planes
     ``P`` (positions), ``L`` (last positions), ``A`` (accelerations).
     """
-    bucket_start, order, sorted_pos, sorted_key, reference, pairs, push, contacts, meta = lists
+    cell_start, cell_of, order, slot, sorted_pos, reference, pairs, push, contacts, meta = lists
     _to_planes(pos, P)
     _to_planes(last, L)
     dt2 = dt * dt
@@ -87,8 +87,9 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if self_collision:
-            pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, bucket_start, order,
-                                    sorted_pos, sorted_key, reference, pairs, push, contacts, meta)
+            pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
+                                    cell_of, order, slot, sorted_pos, reference, pairs, push,
+                                    contacts, meta)
         collide_spheres(P, L, free, spheres)
         collide_planes(P, L, free, planes)
         provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over)
