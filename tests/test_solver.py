@@ -9,7 +9,8 @@ import pytest
 from clothsim.model import build_model
 from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
-from clothsim.solver.grid import BLOCK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, provot, spring_accelerations, verlet
+from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
+                                  integrate, provot)
 from clothsim.solver.self_collide import NeighbourList, self_collide
 
 
@@ -48,39 +49,57 @@ def reference_accelerations(pos, m, k_kind, gravity):
     return acc
 
 
-def test_hooke_forces_match_the_spring_list():
-    """every spring pulls both ends along itself with k*(l - rest)/m; bending uses its own k"""
-    m = grid_model(9, 6)
+def accelerations(pos, m, k_sets, gravity):
+    """the acceleration integrate() applies: one step with dt = 1 from rest (x_prev = x)"""
     st = build_stencil(m)
+    P = planes(pos)
+    L = P.copy()
+    integrate(P, L, gravity, k_sets, np.ones(m.num_points), 0.7, 1.0, st.start, st.end, st.count,
+              st.valid, st.rest, force_buffer(st, m.num_points))
+    np.testing.assert_array_equal(L, planes(pos))  # x_prev <- x
+    return (P - planes(pos)).T
+
+
+@pytest.mark.parametrize("nw,nh", [(9, 6), (40, 30)])  # one chunk; several chunks
+def test_hooke_forces_match_the_spring_list(nw, nh):
+    """every spring pulls both ends along itself with k*(l - rest)/m; bending uses its own k"""
+    m = grid_model(nw, nh)
+    assert (nw * nh > CHUNK) == (nw == 40)
     rng = np.random.default_rng(1)
     pos = m.rest_positions * rng.uniform(0.8, 1.3, size=m.rest_positions.shape)
     k_kind = np.array([10.0, 7.0, 2.0])
     g = np.array([0.0, -9.8, 0.0])
-    A = np.zeros((3, m.num_points))
-    spring_accelerations(planes(pos), A, g, k_kind[SET_KIND], st.start, st.end, st.count, st.valid,
-                         st.rest, np.zeros((3, m.num_points)))
-    np.testing.assert_allclose(A.T, reference_accelerations(pos, m, k_kind, g), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(accelerations(pos, m, k_kind[SET_KIND], g),
+                               reference_accelerations(pos, m, k_kind, g), rtol=1e-9, atol=1e-9)
 
 
 def test_disabled_kind_adds_no_force():
-    """k of 0 for every set means only gravity remains, however stretched the springs"""
+    """k of 0 for a set means no force from it, however stretched, even after a step
+    in which it was on (its buffered forces are not reused)"""
     m = grid_model(4, 4)
+    pos = m.rest_positions * 2.0
+    g = np.array([0, -9.8, 0.0])
+    np.testing.assert_allclose(accelerations(pos, m, np.zeros(6), g), np.tile(g, (m.num_points, 1)))
     st = build_stencil(m)
-    A = np.zeros((3, m.num_points))
-    spring_accelerations(planes(m.rest_positions * 2.0), A, np.array([0, -9.8, 0.0]), np.zeros(6),
-                         st.start, st.end, st.count, st.valid, st.rest, np.zeros((3, m.num_points)))
-    np.testing.assert_array_equal(A.T, np.tile([0, -9.8, 0], (m.num_points, 1)))
+    F = force_buffer(st, m.num_points)
+    for k_sets in (np.full(6, 5.0), np.zeros(6)):
+        P, L = planes(pos), planes(pos)
+        integrate(P, L, g, k_sets, np.ones(m.num_points), 0.0, 1.0, st.start, st.end, st.count,
+                  st.valid, st.rest, F)
+    np.testing.assert_allclose((P - planes(pos)).T, np.tile(g, (m.num_points, 1)))
 
 
 def test_verlet_formula_and_pins():
     """x' = x + (1-d)(x - x_prev) + a dt^2 for free points; pinned points untouched"""
-    P = planes(np.array([[1.0, 2, 3], [1.0, 2, 3]]))
-    L = planes(np.array([[0.5, 2, 3], [0.5, 2, 3]]))
-    A = planes(np.array([[0.0, -10, 0], [0.0, -10, 0]]))
-    verlet(P, L, A, np.array([1.0, 0.0]), 0.9, 0.01)
+    m = grid_model(2, 2)
+    st = build_stencil(m)
+    P = planes(np.array([[1.0, 2, 3], [2.0, 2, 3], [0, 0, 0], [0, 0, 0]]))
+    L = planes(np.array([[0.5, 2, 3], [1.5, 2, 3], [0, 0, 0], [0, 0, 0]]))
+    integrate(P, L, np.array([0.0, -10, 0]), np.zeros(6), np.array([1.0, 0.0, 1.0, 1.0]), 0.9, 0.01,
+              st.start, st.end, st.count, st.valid, st.rest, force_buffer(st, 4))
     np.testing.assert_allclose(P[:, 0], [1.0 + 0.9 * 0.5, 2 - 0.1, 3])
     np.testing.assert_allclose(L[:, 0], [1.0, 2, 3])
-    np.testing.assert_array_equal(P[:, 1], [1.0, 2, 3])
+    np.testing.assert_array_equal(P[:, 1], [2.0, 2, 3])
 
 
 def run_provot(m, pos, enabled):
@@ -314,3 +333,41 @@ def test_self_collision_skips_a_blown_up_state():
     np.testing.assert_array_equal(P.T, pos)
     x.pairs, hits = self_collide(P, rest, np.ones(3), 0.01, 1, 1e7, *x.buffers())
     assert hits == 1 and x.rebuilds == 1
+
+
+def reference_self_collision(pos, rest, free, reach, steps):
+    """every pair closer than reach now and not at rest, pushed apart, averaged, / steps"""
+    d = pos[:, None] - pos[None]
+    dist = np.linalg.norm(d, axis=2)
+    at_rest = np.linalg.norm(rest[:, None] - rest[None], axis=2)
+    hit = (dist < reach) & (at_rest >= reach) & (dist > 0)
+    scale = np.where(hit, (reach - dist) / np.where(hit, dist, 1.0), 0.0)
+    push = (d * scale[..., None]).sum(axis=1)
+    count = hit.sum(axis=1)
+    return pos + push * free[:, None] / steps / np.maximum(count, 1)[:, None], int(hit.sum()) // 2
+
+
+@pytest.mark.parametrize("n,ratio,squeeze", [(30, 1 / 2.4, 0.9), (40, 0.75, 0.95)])
+def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze):
+    """on a cloth whose grid neighbours sit inside the list radius at rest, the near
+    stencil (which checks them every substep) and the list (the rest) together push
+    exactly like a brute-force pass: a squeezed, folded, jittered cloth"""
+    from clothsim.solver.self_collide import near_stencil
+    spec = ClothSpec(width=1.0, height=1.0, num_width_points=n, num_height_points=n,
+                     thickness=ratio / (n - 1), orientation=0, pinned=[[0, 0]])
+    m = build_model(spec)
+    near = near_stencil(m.rest_positions, n, n, m.thickness)
+    assert len(near[0]) > 0
+    rng = np.random.default_rng(n)
+    pos = m.rest_positions * [squeeze, 1, squeeze]
+    half = m.rest_positions[:, 2] > 0.5  # fold the far half back over the near half
+    pos[half, 2] = 1.0 * squeeze - pos[half, 2]
+    pos[half, 1] += 0.6 * m.thickness
+    pos += rng.normal(scale=0.15 * m.thickness, size=pos.shape)
+    free = (~m.pinned).astype(float)
+    expected, pairs = reference_self_collision(pos, m.rest_positions, free, 2 * m.thickness, 3)
+    lists = NeighbourList(m.num_points, n, near)
+    P = planes(pos)
+    lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 3, np.inf, *lists.buffers())
+    assert hits == pairs > 100
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-12)

@@ -14,8 +14,8 @@ from .export import write_obj
 from .mesh import compute_normals
 from .model import ClothModel, build_model
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
-from .solver.grid import BLOCK, CHUNK, SET_KIND, build_stencil
-from .solver.self_collide import NeighbourList
+from .solver.grid import BLOCK, SET_KIND, build_stencil, force_buffer
+from .solver.self_collide import NeighbourList, near_stencil
 
 RUNAWAY_FACTOR = 100.0
 """a point farther than this many cloth sizes from the start means the run blew up"""
@@ -89,11 +89,12 @@ class _Scratch:
         n = model.num_points
         self.stencil = build_stencil(model)
         self.free = (~model.pinned).astype(np.float64)
-        self.planes = np.zeros((3, 3, n))  # positions, last positions, accelerations
-        self.t = np.zeros((3, CHUNK))
+        self.planes = np.zeros((2, 3, n))  # positions, last positions
+        self.forces = force_buffer(self.stencil, n)
         self.c = np.zeros((6, BLOCK))
         self.over = np.zeros(n // BLOCK + 2)
-        self.lists = NeighbourList(n)
+        self.lists = NeighbourList(n, model.num_width_points, near_stencil(
+            model.rest_positions, model.num_height_points, model.num_width_points, model.thickness))
 
 
 
@@ -202,7 +203,7 @@ class Simulation:
             1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
             st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share, st.runs, st.run_span,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
-            bool(p.self_collision), m.thickness, 2.0 * np.sqrt(self._runaway2), s.planes[0], s.planes[1], s.planes[2], s.t, s.c, s.over,
+            bool(p.self_collision), m.thickness, 2.0 * np.sqrt(self._runaway2), s.planes[0], s.planes[1], s.forces, s.c, s.over,
             s.lists.buffers(), self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt

@@ -41,7 +41,7 @@ SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDIN
 SET_STEP = ((0, 1), (1, 0), (1, 1), (1, -1), (0, 2), (2, 0))
 """(dr, di) of each stencil set"""
 CHUNK = 512
-"""springs per block of the force and Provot loops: their scratch stays in L1"""
+"""points per chunk of the force loop: their forces stay in cache until gathered"""
 NO_LIMIT = 1e30
 """the Provot limit of a spring outside the current batch: never reached"""
 BLOCK = 64
@@ -142,57 +142,76 @@ def _inv_length(l2):
     return y * (1.5 - 0.5 * l2 * y * y)
 
 
-@njit(**KERNEL_OPTIONS)
-def spring_accelerations(P, A, gravity, k_over_m, start, end, count, valid, rest, t):
-    """A <- gravity + spring forces / mass; P and A are (3, N) coordinate planes.
+def force_buffer(stencil: Stencil, num_points: int) -> np.ndarray:
+    """Scratch for :func:`integrate`: each set's spring forces, zero-padded in
+    front so that ``F[s, c, pad + p]`` is spring p and every index a point
+    reads stays inside, (6, 3, pad + N)."""
+    return np.zeros((6, 3, int(stencil.end.max()) + 1 + num_points))
 
-    ``k_over_m[s]`` is set s's spring constant over the point mass, 0 when its
-    kind is disabled. Forces go into the (3, CHUNK) scratch ``t`` first and are
-    added to both ends after, so no loop reads and writes one plane at two offsets.
+
+@njit(**KERNEL_OPTIONS)
+def integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest, F):
+    """One Verlet step under gravity and the spring forces; P, L are (3, N) planes.
+
+    ``x' = x + keep*(x - x_prev) + a dt²`` where ``free`` is 1, with ``a`` the
+    acceleration from gravity and every spring (Hooke's law along the
+    spring, ``k_over_m[s]`` set s's constant over the point mass, 0 when
+    its kind is disabled).
+
+    Spring forces go to the (6, 3, pad + N) buffer ``F`` first, then each
+    point gathers its twelve: ``a[q] = g + sum_s F_s[q - start_s] - F_s[q - end_s]``.
+    That reads each force twice but writes each acceleration once, instead
+    of adding into both ends of every spring. The cloth is walked in chunks
+    of CHUNK points so the forces are still in cache when gathered. A chunk's
+    springs only look forward (both ends at ``p`` or later), so a point can
+    be moved as soon as its chunk is gathered: no later chunk reads it.
     """
-    for c in range(3):
-        A[c] = gravity[c]
+    n = P.shape[1]
+    pad = F.shape[2] - n
     x, y, z = P[0], P[1], P[2]
-    tx, ty, tz = t[0], t[1], t[2]
-    for s in range(6):
-        k = k_over_m[s]
-        if k == 0.0:
-            continue
-        oa, ob, m = start[s], end[s], count[s]
-        w, rl = valid[s], rest[s]
-        # views that start at each end: plain p indexing lets LLVM skip the
-        # negative-index wraparound, which would block vectorisation; chunks
-        # keep the scratch in L1
-        for lo in range(0, m, CHUNK):
-            n = min(CHUNK, m - lo)
-            xa, ya, za = x[oa + lo:], y[oa + lo:], z[oa + lo:]
-            xb, yb, zb = x[ob + lo:], y[ob + lo:], z[ob + lo:]
-            wc, rc = w[lo:], rl[lo:]
-            for p in range(n):
+    for lo in range(0, n, CHUNK):
+        hi = min(lo + CHUNK, n)
+        for s in range(6):
+            k = k_over_m[s]
+            m = min(hi, count[s]) - lo
+            fx, fy, fz = F[s, 0, pad + lo:], F[s, 1, pad + lo:], F[s, 2, pad + lo:]
+            if k == 0.0:
+                for p in range(m):
+                    fx[p] = 0.0
+                    fy[p] = 0.0
+                    fz[p] = 0.0
+                continue
+            oa, ob = start[s] + lo, end[s] + lo
+            # views that start at each end: plain p indexing lets LLVM skip the
+            # negative-index wraparound, which would block vectorisation
+            xa, ya, za = x[oa:], y[oa:], z[oa:]
+            xb, yb, zb = x[ob:], y[ob:], z[ob:]
+            w, rl = valid[s, lo:], rest[s, lo:]
+            for p in range(m):
                 dx = xb[p] - xa[p]
                 dy = yb[p] - ya[p]
                 dz = zb[p] - za[p]
-                f = k * wc[p] * (1.0 - rc[p] * _inv_length(dx * dx + dy * dy + dz * dz))
-                tx[p] = f * dx
-                ty[p] = f * dy
-                tz[p] = f * dz
-            for c in range(3):
-                a, b, tc = A[c, oa + lo:], A[c, ob + lo:], t[c]
-                for p in range(n):
-                    a[p] += tc[p]
-                for p in range(n):
-                    b[p] -= tc[p]
-
-
-@njit(**KERNEL_OPTIONS)
-def verlet(P, L, A, free, keep, dt2):
-    """x' = x + keep*(x - x_prev) + a dt² where free is 1; unchanged where it is 0."""
-    for c in range(3):
-        x, last, a = P[c], L[c], A[c]
-        for p in range(x.shape[0]):
-            xp = x[p]
-            x[p] = xp + free[p] * (keep * (xp - last[p]) + a[p] * dt2)
-            last[p] = xp
+                f = k * w[p] * (1.0 - rl[p] * _inv_length(dx * dx + dy * dy + dz * dz))
+                fx[p] = f * dx
+                fy[p] = f * dy
+                fz[p] = f * dz
+        fr = free[lo:]
+        for c in range(3):
+            xc, lc = P[c, lo:hi], L[c, lo:]
+            g = gravity[c]
+            b = pad + lo
+            f0a, f0b = F[0, c, b - start[0]:], F[0, c, b - end[0]:]
+            f1a, f1b = F[1, c, b - start[1]:], F[1, c, b - end[1]:]
+            f2a, f2b = F[2, c, b - start[2]:], F[2, c, b - end[2]:]
+            f3a, f3b = F[3, c, b - start[3]:], F[3, c, b - end[3]:]
+            f4a, f4b = F[4, c, b - start[4]:], F[4, c, b - end[4]:]
+            f5a, f5b = F[5, c, b - start[5]:], F[5, c, b - end[5]:]
+            for q in range(hi - lo):
+                a = (g + (f0a[q] - f0b[q]) + (f1a[q] - f1b[q]) + (f2a[q] - f2b[q])
+                     + (f3a[q] - f3b[q]) + (f4a[q] - f4b[q]) + (f5a[q] - f5b[q]))
+                xq = xc[q]
+                xc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a * dt2)
+                lc[q] = xq
 
 
 @njit(**KERNEL_OPTIONS)

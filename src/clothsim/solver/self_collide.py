@@ -30,7 +30,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .grid import KERNEL_OPTIONS
+from .grid import BLOCK, KERNEL_OPTIONS
+
+EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
+"""for the kernels that test for NaN before turning coordinates into cell
+indices: fastmath would let LLVM drop the test, also where one of them is
+inlined into another, and a NaN index could then reach memory"""
 
 SKIN_FACTOR = 0.5
 """skin of the neighbour list as a fraction of the reach: larger lists, rarer rebuilds"""
@@ -41,15 +46,58 @@ CELL_FACTOR = 2.0
 CELLS_PER_POINT = 8
 """most grid cells per point; a cloth spread wider gets coarser cells"""
 
+NEAR = 5
+"""grid offsets up to this many rows and columns may be checked as a stencil"""
+
 # fields of the ``meta`` int64 array that carries the list's state between calls
-PAIRS, VALID, REBUILDS = 0, 1, 2
-META_SIZE = 3
+PAIRS, VALID, REBUILDS, COLS = 0, 1, 2, 3
+META_SIZE = 4
+
+
+def near_stencil(rest: np.ndarray, rows: int, cols: int,
+                 thickness: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The grid offsets whose pairs sit inside the list radius at rest.
+
+    Such pairs (grid neighbours on a fine cloth) fill most of the list and
+    would stay in it for good, so they are checked every substep as a
+    stencil, a vectorised loop over contiguous memory, instead; the list
+    leaves them out. Returns the flat offsets (S,), a weight (S, N) that is
+    1 where the pair exists and is not closer than the reach at rest (those
+    are never pushed), and a (NEAR+1, 2*NEAR+1) table of the (dr, di) taken.
+    """
+    n = rows * cols
+    reach = 2.0 * thickness
+    radius = reach * (1.0 + SKIN_FACTOR)
+    r, i = np.divmod(np.arange(n), cols)
+    offsets, weights = [], []
+    table = np.zeros((NEAR + 1, 2 * NEAR + 1), dtype=np.int64)
+    for dr in range(NEAR + 1):
+        for di in range(-NEAR, NEAR + 1):
+            if dr == 0 and di <= 0:
+                continue  # each pair once
+            p = np.flatnonzero((r + dr < rows) & (i + di >= 0) & (i + di < cols))
+            if len(p) == 0:
+                continue
+            d = np.linalg.norm(rest[p + dr * cols + di] - rest[p], axis=1)
+            if np.median(d) >= radius:
+                continue  # apart at rest: the list finds them when they come close
+            w = np.zeros(n)
+            w[p] = d >= reach
+            if not w.any():
+                continue  # all closer than the reach at rest: never pushed
+            offsets.append(dr * cols + di)
+            weights.append(w)
+            table[dr, di + NEAR] = 1
+    return (np.array(offsets, dtype=np.int64), np.array(weights).reshape(len(offsets), n), table)
 
 
 class NeighbourList:
     """The buffers of the cell grid and the neighbour list, allocated once per cloth."""
 
-    def __init__(self, num_points: int) -> None:
+    def __init__(self, num_points: int, cols: int | None = None,
+                 near: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
+        """``cols`` and ``near`` (from :func:`near_stencil`) describe the cloth's
+        grid; without them every pair goes through the list."""
         n = num_points
         self.cell_start = np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64)
         self.cell_of = np.zeros(n, dtype=np.int64)
@@ -61,11 +109,18 @@ class NeighbourList:
         self.push = np.zeros((3, n))
         self.count = np.zeros(n)
         self.meta = np.zeros(META_SIZE, dtype=np.int64)
+        self.meta[COLS] = n if cols is None else cols
+        if near is None:
+            near = (np.zeros(0, np.int64), np.zeros((0, n)), np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64))
+        self.near_offset, self.near_weight, self.near_table = near
+        self.near_flags = np.zeros(n // BLOCK + 2)
+        self.near_scratch = np.zeros((4, BLOCK))
 
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
-                self.reference, self.pairs, self.push, self.count, self.meta)
+                self.reference, self.pairs, self.push, self.count, self.meta, self.near_offset,
+                self.near_weight, self.near_table, self.near_flags, self.near_scratch)
 
     @property
     def num_pairs(self) -> int:
@@ -77,7 +132,7 @@ class NeighbourList:
         return int(self.meta[REBUILDS])
 
 
-@njit(cache=True, boundscheck=False)
+@njit(**EXACT_OPTIONS)
 def _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, sorted_pos):
     """Counting-sort the points into a dense grid of cells over their bounding box.
 
@@ -91,8 +146,6 @@ def _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, so
 
     Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
     the points are not finite or spread wider than ``span``: no list then.
-    Compiled without fastmath, which would let LLVM assume the finiteness
-    check away.
     """
     n = P.shape[1]
     lo = np.empty(3)
@@ -151,11 +204,14 @@ def _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, so
     return grid
 
 
-@njit(**KERNEL_OPTIONS)
-def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, sorted_pos, pairs):
+@njit(**EXACT_OPTIONS)
+def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, sorted_pos, pairs,
+               cols, near_table):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
     are, which may exceed the capacity: then only the first ones were stored.
+    Pairs ``(dr, di)`` apart on a grid of ``cols`` columns are left out where
+    ``near_table[dr, di + NEAR]`` is set: the near stencil checks them.
     Returns -1 when the points are not finite or spread wider than ``span``.
     """
     n = P.shape[1]
@@ -199,9 +255,16 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
                     ez = az - rz[q]
                     if ex * ex + ey * ey + ez * ez < reach2:
                         continue
+                    pq = order[q]
+                    dr = pq // cols - pk // cols
+                    di = pq % cols - pk % cols
+                    if dr < 0 or (dr == 0 and di < 0):
+                        dr, di = -dr, -di
+                    if dr <= NEAR and abs(di) <= NEAR and near_table[dr, di + NEAR] != 0:
+                        continue
                     if found < capacity:
                         pairs[0, found] = pk
-                        pairs[1, found] = order[q]
+                        pairs[1, found] = pq
                     found += 1
     return found
 
@@ -230,9 +293,10 @@ def _drifted(P, reference, limit):
     return not worst <= limit * limit  # NaN counts as drifted
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**EXACT_OPTIONS)
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
-                 sorted_pos, reference, pairs, push, count, meta):
+                 sorted_pos, reference, pairs, push, count, meta, near_offset, near_weight,
+                 near_table, near_flags, near_scratch):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -248,23 +312,23 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     if meta[VALID] == 0 or _drifted(P, reference, 0.5 * skin):
         radius = reach + skin
         found = build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                           sorted_pos, pairs)
+                           sorted_pos, pairs, meta[COLS], near_table)
         if found < 0:
             meta[VALID] = 0
             return pairs, 0
         if found > pairs.shape[1]:
             pairs = np.empty((2, 2 * found), dtype=np.int32)
             build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                       sorted_pos, pairs)
+                       sorted_pos, pairs, meta[COLS], near_table)
         meta[PAIRS] = found
         reference[:] = P
         meta[VALID] = 1
         meta[REBUILDS] += 1
     push[:] = 0.0
     count[:] = 0.0
+    hits = near_pushes(P, reach, near_offset, near_weight, push, count, near_flags, near_scratch)
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
-    hits = 0
     for k in range(meta[PAIRS]):
         a = pairs[0, k]
         b = pairs[1, k]
@@ -292,3 +356,74 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
             for p in range(n):
                 xc[p] += pc[p] * free[p] * inv_steps / max(count[p], 1.0)
     return pairs, hits
+
+
+@njit(**KERNEL_OPTIONS)
+def near_pushes(P, reach, offsets, weight, push, count, flags, c):
+    """Add the pushes of the near-stencil pairs closer than ``reach`` to ``push``
+    and ``count``; returns how many pairs that was.
+
+    As in the Provot pass, a whole offset set is first only checked, block by
+    block of BLOCK pairs (no square root, no stores per pair), and only the
+    blocks with a pair inside the reach are then pushed.
+    """
+    n = P.shape[1]
+    reach2 = reach * reach
+    x, y, z = P[0], P[1], P[2]
+    hits = 0
+    for s in range(offsets.shape[0]):
+        o = offsets[s]
+        m = n - o
+        ws = weight[s]
+        blocks = 0
+        for lo in range(0, m, BLOCK):
+            nb = min(BLOCK, m - lo)
+            xa, ya, za = x[lo:], y[lo:], z[lo:]
+            xb, yb, zb = x[lo + o:], y[lo + o:], z[lo + o:]
+            w = ws[lo:]
+            close = 0.0  # a sum of selects vectorises
+            for p in range(nb):
+                dx = xa[p] - xb[p]
+                dy = ya[p] - yb[p]
+                dz = za[p] - zb[p]
+                d2 = dx * dx + dy * dy + dz * dz
+                close += w[p] if d2 < reach2 and d2 > 0.0 else 0.0
+            flags[blocks] = close
+            blocks += 1
+        for b in range(blocks):
+            if flags[b] > 0.0:
+                lo = b * BLOCK
+                hits += np.int64(flags[b])
+                _push_block(P, lo, lo + o, min(BLOCK, m - lo), ws[lo:], reach, push, count, c)
+    return hits
+
+
+@njit(**KERNEL_OPTIONS)
+def _push_block(P, a0, b0, nb, w, reach, push, count, c):
+    """Pushes of pairs ``a0 + p``, ``b0 + p`` (p < nb) into push and count; c is (4, BLOCK)."""
+    reach2 = reach * reach
+    xa, ya, za = P[0, a0:], P[1, a0:], P[2, a0:]
+    xb, yb, zb = P[0, b0:], P[1, b0:], P[2, b0:]
+    for p in range(nb):
+        dx = xa[p] - xb[p]
+        dy = ya[p] - yb[p]
+        dz = za[p] - zb[p]
+        d2 = dx * dx + dy * dy + dz * dz
+        hit = w[p] > 0.0 and d2 < reach2 and d2 > 0.0
+        d = np.sqrt(d2 if hit else 1.0)
+        s = (reach - d) / d if hit else 0.0
+        c[0, p] = dx * s
+        c[1, p] = dy * s
+        c[2, p] = dz * s
+        c[3, p] = 1.0 if hit else 0.0
+    for k in range(3):
+        pa, pb, ck = push[k, a0:], push[k, b0:], c[k]
+        for p in range(nb):
+            pa[p] += ck[p]
+        for p in range(nb):
+            pb[p] -= ck[p]
+    ca, cb, hit = count[a0:], count[b0:], c[3]
+    for p in range(nb):
+        ca[p] += hit[p]
+    for p in range(nb):
+        cb[p] += hit[p]

@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit
 
 from .collide import collide_planes, collide_spheres
-from .grid import provot, spring_accelerations, verlet
+from .grid import integrate, provot
 from .self_collide import self_collide
 
 
@@ -62,7 +62,7 @@ def _from_planes(P, pos):
 @njit(cache=True, boundscheck=False)
 def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
             start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
-            self_collision, thickness, span, P, L, A, t, c, over, lists, handle, handle_pos, center):
+            self_collision, thickness, span, P, L, F, c, over, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
     Returns (largest squared distance of a point from ``center`` afterwards,
@@ -75,21 +75,23 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     self-collision, sphere and plane collisions, then the Provot pass.
     ``handle`` (or -1) is a point held at ``handle_pos`` by the user's grab:
     it moves kinematically. The kernels work on (3, N) coordinate planes
-    ``P`` (positions), ``L`` (last positions), ``A`` (accelerations).
+    ``P`` (positions) and ``L`` (last positions); ``F``, ``c`` and ``over``
+    are the scratch of :func:`integrate` and :func:`provot`.
     """
-    cell_start, cell_of, order, slot, sorted_pos, reference, pairs, push, contacts, meta = lists
+    (cell_start, cell_of, order, slot, sorted_pos, reference, pairs, push, contacts, meta,
+     near_offset, near_weight, near_table, near_flags, near_scratch) = lists
     _to_planes(pos, P)
     _to_planes(last, L)
     dt2 = dt * dt
     for _ in range(substeps):
-        spring_accelerations(P, A, gravity, k_over_m, start, end, count, valid, rest_length, t)
-        verlet(P, L, A, free, keep, dt2)
+        integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest_length, F)
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
                                     cell_of, order, slot, sorted_pos, reference, pairs, push,
-                                    contacts, meta)
+                                    contacts, meta, near_offset, near_weight, near_table,
+                                    near_flags, near_scratch)
         collide_spheres(P, L, free, spheres)
         collide_planes(P, L, free, planes)
         provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over)
