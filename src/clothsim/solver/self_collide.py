@@ -6,11 +6,12 @@ substeps the points barely move relative to each other. So the hash is asked
 for every pair within ``reach + skin`` (a neighbour list, as in molecular
 dynamics), and each substep only tests the listed pairs. The list is rebuilt
 as soon as any point may have come within ``reach`` of a point not listed:
-when, after taking out the cloth's mean motion since the build, some point
-has moved more than ``skin/2``. Two unlisted points started at least
-``reach + skin`` apart and each moved less than ``skin/2`` relative to the
-common motion, so they are still farther apart than ``reach``; the pairs
-found are exactly those a hash rebuilt every substep would find.
+when the displacements since the build may differ by ``skin`` between two
+points (bounded by the box around all displacements, or by twice the
+largest deviation from their mean). Two unlisted points started at least
+``reach + skin`` apart and their displacements differ by less than
+``skin``, so they are still farther apart than ``reach``; the pairs found
+are exactly those a hash rebuilt every substep would find.
 
 The spatial hash is a dense grid of cells over the cloth's bounding box (a
 perfect hash: no two cells share a bucket, so no key is checked), filled
@@ -270,17 +271,30 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
 
 
 @njit(**KERNEL_OPTIONS)
-def _drifted(P, reference, limit):
-    """Whether some point moved more than ``limit`` since the list was built,
-    after the cloth's mean motion is taken out."""
+def _drifted(P, reference, skin):
+    """Whether two points may have come closer by ``skin`` since the list was built.
+
+    Two bounds on how far any two displacements d_a, d_b differ, either of
+    which suffices: the diagonal of the box around all displacements, and
+    twice the largest deviation from their mean. The box is the tighter one
+    when part of the cloth moves and the rest stays (a cloth falling onto
+    the floor), the mean when it moves in all directions alike.
+    """
     n = P.shape[1]
     mean = np.zeros(3)
+    diagonal2 = 0.0
     for c in range(3):
-        s = 0.0
+        s, lo, hi = 0.0, np.inf, -np.inf
         x, r = P[c], reference[c]
         for p in range(n):
-            s += x[p] - r[p]
+            d = x[p] - r[p]
+            s += d
+            lo = d if d < lo else lo  # selects vectorise; min and max, NaN-aware, do not
+            hi = d if d > hi else hi
         mean[c] = s / n
+        diagonal2 += (hi - lo) * (hi - lo)
+    if diagonal2 < skin * skin:
+        return False
     worst = 0.0
     mx, my, mz = mean[0], mean[1], mean[2]
     x, y, z = P[0], P[1], P[2]
@@ -289,8 +303,9 @@ def _drifted(P, reference, limit):
         dx = x[p] - rx[p] - mx
         dy = y[p] - ry[p] - my
         dz = z[p] - rz[p] - mz
-        worst = max(worst, dx * dx + dy * dy + dz * dz)
-    return not worst <= limit * limit  # NaN counts as drifted
+        d2 = dx * dx + dy * dy + dz * dz
+        worst = d2 if d2 > worst else worst
+    return not 4.0 * worst < skin * skin  # NaN counts as drifted
 
 
 @njit(**EXACT_OPTIONS)
@@ -309,7 +324,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     n = P.shape[1]
     reach = 2.0 * thickness
     skin = SKIN_FACTOR * reach
-    if meta[VALID] == 0 or _drifted(P, reference, 0.5 * skin):
+    if meta[VALID] == 0 or _drifted(P, reference, skin):
         radius = reach + skin
         found = build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
                            sorted_pos, pairs, meta[COLS], near_table)
