@@ -97,7 +97,6 @@ class _Scratch:
             model.rest_positions, model.num_height_points, model.num_width_points, model.thickness))
 
 
-
 @dataclass
 class Simulation:
     """A running cloth: ``step()`` advances one frame of ``params.frames_per_sec``.
@@ -123,6 +122,7 @@ class Simulation:
         self._center = self.model.rest_positions.mean(axis=0)
         size = max(self.model.width, self.model.height)
         self._runaway2 = (RUNAWAY_FACTOR * size) ** 2
+        self._span = 2.0 * RUNAWAY_FACTOR * size  # spread beyond which self-collision stops
         self._normals: np.ndarray | None = None
         self._handle = -1
         self._handle_pos = np.zeros(3)
@@ -203,8 +203,8 @@ class Simulation:
             1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
             st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share, st.runs, st.run_span,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
-            bool(p.self_collision), m.thickness, 2.0 * np.sqrt(self._runaway2), s.planes[0], s.planes[1], s.forces, s.c, s.over,
-            s.lists.buffers(), self._handle, self._handle_pos, self._center)
+            bool(p.self_collision), m.thickness, self._span, s.planes[0], s.planes[1], s.forces,
+            s.c, s.over, s.lists.buffers(), self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None
