@@ -124,11 +124,6 @@ class NeighbourList:
                 self.near_weight, self.near_table, self.near_flags, self.near_scratch)
 
     @property
-    def num_pairs(self) -> int:
-        """pairs within reach + skin at the last rebuild"""
-        return int(self.meta[PAIRS])
-
-    @property
     def rebuilds(self) -> int:
         return int(self.meta[REBUILDS])
 
