@@ -104,7 +104,7 @@ class NeighbourList:
         self.cell_of = np.zeros(n, dtype=np.int64)
         self.order = np.zeros(n, dtype=np.int64)
         self.slot = np.zeros(n, dtype=np.int64)
-        self.sorted_pos = np.zeros((6, n))  # position and rest position per slot
+        self.sorted_pos = np.zeros((8, n))  # position, rest position, grid row and column per slot
         self.reference = np.zeros((3, n))
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
         self.push = np.zeros((3, n))
@@ -129,7 +129,7 @@ class NeighbourList:
 
 
 @njit(**EXACT_OPTIONS)
-def _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, sorted_pos):
+def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos):
     """Counting-sort the points into a dense grid of cells over their bounding box.
 
     Cells are ``CELL_FACTOR * radius`` wide where the buffer allows, coarser where the cloth
@@ -137,8 +137,9 @@ def _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, so
     cells next to each other along x are next to each other in the sorted
     order and a query reads a row of three cells as one range. Afterwards
     cell c holds slots ``cell_start[c] : cell_start[c+1]``, ``order[k]`` is
-    the point in slot k, ``slot`` the inverse, and the point's position and
-    rest position are copied to column k of ``sorted_pos`` (6, N).
+    the point in slot k, ``slot`` the inverse, and the point's position,
+    rest position and row and column on a grid of ``cols`` columns are
+    copied to column k of ``sorted_pos`` (8, N).
 
     Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
     the points are not finite or spread wider than ``span``: no list then.
@@ -189,12 +190,18 @@ def _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, so
     for c in range(cells):
         cell_start[c] = cell_start[c + 1]
     cell_start[cells] = n
+    row, col = 0.0, 0.0  # counted along: a division per candidate pair cost a fifth of the build
     for p in range(n):
         k = slot[p]
         order[k] = p
         for c in range(3):
             sorted_pos[c, k] = P[c, p]
             sorted_pos[3 + c, k] = rest[p, c]
+        sorted_pos[6, k] = row
+        sorted_pos[7, k] = col
+        col += 1.0
+        if col == cols:
+            row, col = row + 1.0, 0.0
     grid[0], grid[1], grid[2], grid[3] = lo[0], lo[1], lo[2], size
     grid[4], grid[5], grid[6] = nx, ny, nz
     return grid
@@ -211,7 +218,7 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     Returns -1 when the points are not finite or spread wider than ``span``.
     """
     n = P.shape[1]
-    grid = _sort_into_cells(P, rest, radius, span, cell_start, cell_of, order, slot, sorted_pos)
+    grid = _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
     size = grid[3]
     if size == 0.0:
         return -1
@@ -222,6 +229,7 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     capacity = pairs.shape[1]
     sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
     rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
+    grid_row, grid_col = sorted_pos[6], sorted_pos[7]
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
@@ -229,6 +237,7 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
         k = slot[pk]
         x, y, z = sx[k], sy[k], sz[k]
         ax, ay, az = rx[k], ry[k], rz[k]
+        gr, gc = grid_row[k], grid_col[k]
         # cells the search sphere overlaps; floor, then clamp into the grid
         ix0 = max(np.int64(np.floor((x - radius - x0) * inv)), 0)
         ix1 = min(np.int64((x + radius - x0) * inv), nx - 1)
@@ -251,13 +260,13 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
                     ez = az - rz[q]
                     if ex * ex + ey * ey + ez * ez < reach2:
                         continue
-                    pq = order[q]
-                    dr = pq // cols - pk // cols
-                    di = pq % cols - pk % cols
+                    dr = np.int64(grid_row[q] - gr)
+                    di = np.int64(grid_col[q] - gc)
                     if dr < 0 or (dr == 0 and di < 0):
                         dr, di = -dr, -di
                     if dr <= NEAR and abs(di) <= NEAR and near_table[dr, di + NEAR] != 0:
                         continue
+                    pq = order[q]
                     if found < capacity:
                         pairs[0, found] = pk
                         pairs[1, found] = pq
