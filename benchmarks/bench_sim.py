@@ -1,8 +1,7 @@
 """Simulation throughput: substeps/s and point updates/s per standard scene and size.
 
-Prints one JSON object per measurement. Single-threaded, and for cloths
-large enough to be split (``clothsim.solver.PARALLEL_MIN_POINTS``) also on
-``--threads`` threads (default: numba's count, the machine's cores). The cost of the springs (forces and the Provot pass) and of
+Prints one JSON object per measurement. Single-threaded (the kernels are
+serial). The cost of the springs (forces and the Provot pass) and of
 self-collision per substep come from differences of runs with each switched
 off, measured back to back. Each measurement is the median of ``--repeats`` runs of the same
 stretch of simulated time from the scene's start, after a warm-up that
@@ -22,10 +21,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import emit, machine, peak_rss_mib  # noqa: E402
 
-import numba  # noqa: E402
-
 from clothsim import Simulation  # noqa: E402
-from clothsim.solver import parts_for  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ["pinned2", "pinned4", "sphere", "plane", "selfCollision"]
@@ -43,11 +39,11 @@ def sized(scene: str, n: int) -> list[str]:
 
 
 def measure(scene: str, n: int, seconds: float, self_collision: bool, repeats: int,
-            springs: bool = True, threads: int = 1) -> tuple[float, float]:
+            springs: bool = True) -> tuple[float, float]:
     """(median substeps/s, neighbour-list rebuilds per 100 substeps)"""
     rates, rebuilds = [], []
     for _ in range(repeats):
-        sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n), threads)
+        sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n))
         sim.params.self_collision = self_collision and sim.params.self_collision
         if not springs:
             sim.params.enable_structural = sim.params.enable_shearing = sim.params.enable_bending = False
@@ -66,13 +62,10 @@ def main() -> None:
     ap.add_argument("--sizes", default="50,100,200")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--threads", type=int, default=numba.get_num_threads())
     args = ap.parse_args()
     info = machine()
     warm = Simulation.from_file(ROOT / "scenes" / "pinned2.json")
     warm.step()  # compile (or load cached) kernels outside the timings
-    big = Simulation.from_file(ROOT / "scenes" / "pinned2.json", sized("pinned2", 100), args.threads)
-    big.step()  # and the parallel ones
     for n in (int(s) for s in args.sizes.split(",")):
         for scene in args.scenes.split(","):
             seconds = SECONDS.get(n, 0.1)
@@ -80,11 +73,6 @@ def main() -> None:
             without, _ = measure(scene, n, seconds, False, args.repeats)
             bare, _ = measure(scene, n, seconds, False, args.repeats, springs=False)
             us = 1e6 / with_self, 1e6 / without, 1e6 / bare  # microseconds per substep
-            threaded = {}
-            if args.threads > 1 and parts_for(n * n, args.threads) > 1:
-                rate, _ = measure(scene, n, seconds, True, args.repeats, threads=args.threads)
-                threaded = {"threads": args.threads, "substeps_per_s_threaded": round(rate, 1),
-                            "realtime_factor_threaded": round(rate / 2700.0, 3)}
             emit({"bench": "simulate", "scene": scene, "points": n * n, "grid": f"{n}x{n}",
                   "simulated_s": seconds, "substeps_per_s": round(with_self, 1),
                   "point_updates_per_s": round(with_self * n * n),
@@ -92,7 +80,7 @@ def main() -> None:
                   "springs_us_per_substep": round(us[1] - us[2], 1),
                   "self_collision_us_per_substep": round(us[0] - us[1], 1),
                   "list_rebuilds_per_100_substeps": round(rebuilds, 1),
-                  "realtime_factor": round(with_self / 2700.0, 3), **threaded,
+                  "realtime_factor": round(with_self / 2700.0, 3),
                   "peak_rss_mib": round(peak_rss_mib(), 1), **info})
 
 
