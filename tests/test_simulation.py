@@ -211,20 +211,6 @@ def test_runs_are_reproducible():
     assert np.array_equal(a.positions, b.positions)
 
 
-def test_two_threads_give_the_one_thread_result():
-    """a cloth large enough to be split over threads ends bit-identical to the
-    run on one thread: the split changes who computes, not what"""
-    n = 72
-    over = [f"cloth.num_width_points={n}", f"cloth.num_height_points={n}"]
-    one = Simulation.from_file(SCENES / "selfCollision.json", over, threads=1)
-    two = Simulation.from_file(SCENES / "selfCollision.json", over, threads=2)
-    assert two._scratch.parts == 2 and one._scratch.parts == 1
-    one.run(0.2)
-    two.run(0.2)
-    assert two.neighbour_list_rebuilds > 0
-    assert np.array_equal(one.positions, two.positions)
-
-
 def test_stability_guard_names_frame_and_parameters():
     """an absurd ks for the substep count stops with an error naming frame, ks and the fix"""
     sim = Simulation.from_file(SCENES / "pinned2.json", ["cloth.ks=1e9", "simulation.simulation_steps=2"])

@@ -10,7 +10,7 @@ from clothsim.model import build_model
 from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
-                                  integrate, integrate_parts, provot)
+                                  integrate, provot)
 from clothsim.solver.self_collide import NeighbourList, self_collide
 
 
@@ -87,25 +87,6 @@ def test_disabled_kind_adds_no_force():
         integrate(P, L, g, k_sets, np.ones(m.num_points), 0.0, 1.0, st.start, st.end, st.count,
                   st.valid, st.rest, F)
     np.testing.assert_allclose((P - planes(pos)).T, np.tile(g, (m.num_points, 1)))
-
-
-@pytest.mark.parametrize("nw,nh,parts", [(60, 60, 2), (60, 60, 3), (30, 30, 3), (20, 3, 2)])
-def test_integrate_in_parts_matches_serial_to_the_bit(nw, nh, parts):
-    """split over threads, the step is the serial one exactly: also where a part is
-    held back whole (30x30 in 3) or empty (a cloth of one chunk)"""
-    m = grid_model(nw, nh, pinned=[[0, 0]])
-    st = build_stencil(m)
-    rng = np.random.default_rng(nw + parts)
-    pos = m.rest_positions * rng.uniform(0.8, 1.3, size=m.rest_positions.shape)
-    last = pos + rng.normal(scale=0.01, size=pos.shape)
-    args = (np.array([0.0, -9.8, 0.1]), np.array([9.0, 8.0, 7.0, 6.0, 2.0, 1.0]),
-            (~m.pinned).astype(float), 0.98, 1e-3, st.start, st.end, st.count, st.valid, st.rest)
-    P, L = planes(pos), planes(last)
-    integrate(P, L, *args, force_buffer(st, m.num_points))
-    Q, M = planes(pos), planes(last)
-    integrate_parts(Q, M, *args, force_buffer(st, m.num_points), parts)
-    assert not np.allclose(P, planes(pos))
-    assert np.array_equal(P, Q) and np.array_equal(L, M)
 
 
 def test_verlet_formula_and_pins():
@@ -324,32 +305,6 @@ def test_self_collision_matches_brute_force_as_points_move():
         if step % 10 == 9:
             pos[rng.integers(n)] = rng.uniform(0, 0.3, 3)  # one point jumps
     assert 1 < lists.rebuilds < 40
-
-
-def test_list_built_in_parts_is_the_same_list():
-    """the list built by several threads, and rebuilt after outgrowing its
-    array, holds the same pairs in the same order as the serial build"""
-    from clothsim.solver.self_collide import build_list
-    n = 40
-    rng = np.random.default_rng(3)
-    m = grid_model(n, n, spacing=0.02)
-    pos = m.rest_positions * [0.5, 1, 0.5] + rng.normal(scale=0.01, size=m.rest_positions.shape)
-    lists = {}
-    for parts, capacity in ((1, 100_000), (2, 100_000), (3, 100_000), (2, 16)):
-        x = NeighbourList(m.num_points, n, parts=parts)
-        pairs = np.zeros((2, capacity), dtype=np.int32)
-        b = x.buffers()
-        args = (planes(pos), m.rest_positions, 0.02, 0.03, np.inf, *b[:5])
-        found = build_list(*args, pairs, n, x.near_table, parts)
-        assert (found > capacity) == (capacity == 16)
-        if found > capacity:
-            pairs = np.zeros((2, found), dtype=np.int32)
-            found = build_list(*args, pairs, n, x.near_table, parts)
-        lists[parts, capacity] = pairs[:, :found].copy()
-    serial = lists[1, 100_000]
-    assert serial.shape[1] > 1000
-    for key, got in lists.items():
-        assert np.array_equal(got, serial), key
 
 
 def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():

@@ -21,22 +21,10 @@ def _add_scene_args(p: argparse.ArgumentParser, seconds: float) -> None:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene value by its dotted key, e.g. cloth.ks=500 (repeatable)")
     p.add_argument("--no-self-collision", action="store_true", help="turn self-collision off")
-    p.add_argument("--threads", type=_positive_int, metavar="N",
-                   help="threads for cloths of 5000 points and more (default: all cores)")
     p.add_argument("--overwrite", action="store_true", help="replace output files that already exist")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--export-sequence", metavar="DIR", help="write one OBJ per frame into DIR")
     p.add_argument("--export-npz", metavar="OUT.npz", help="write the whole trajectory as NumPy arrays")
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, not {text!r}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def load_simulation(args: argparse.Namespace) -> Simulation:
-    sim = Simulation.from_file(args.scene, args.overrides, args.threads)
+    sim = Simulation.from_file(args.scene, args.overrides)
     if args.no_self_collision:
         sim.params.self_collision = False
     return sim

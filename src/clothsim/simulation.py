@@ -85,9 +85,8 @@ class State:
 class _Scratch:
     """Buffers the kernels reuse every substep, allocated once per model."""
 
-    def __init__(self, model: ClothModel, parts: int) -> None:
+    def __init__(self, model: ClothModel) -> None:
         n = model.num_points
-        self.parts = parts
         self.stencil = build_stencil(model)
         self.free = (~model.pinned).astype(np.float64)
         self.planes = np.zeros((2, 3, n))  # positions, last positions
@@ -95,8 +94,7 @@ class _Scratch:
         self.c = np.zeros((6, BLOCK))
         self.over = np.zeros(n // BLOCK + 2)
         self.lists = NeighbourList(n, model.num_width_points, near_stencil(
-            model.rest_positions, model.num_height_points, model.num_width_points, model.thickness),
-            parts)
+            model.rest_positions, model.num_height_points, model.num_width_points, model.thickness))
 
 
 @dataclass
@@ -105,16 +103,9 @@ class Simulation:
 
     ``params``, ``spheres`` and ``planes`` (friction, position) may be edited
     between frames; nothing is rebuilt for it.
-
-    ``threads``: how many threads a substep's largest kernels are split over
-    (None: numba's thread count, which ``NUMBA_NUM_THREADS`` sets). Cloths under
-    PARALLEL_MIN_POINTS points always run on one, where starting threads
-    costs more than it saves. The result depends on the split, not on how
-    many threads run it.
     """
 
     scene: Scene
-    threads: int | None = None
     model: ClothModel = field(init=False)
     params: Params = field(init=False)
     state: State = field(init=False)
@@ -127,7 +118,7 @@ class Simulation:
         self.spheres = copy.deepcopy(self.scene.spheres)
         self.planes = copy.deepcopy(self.scene.planes)
         self.state = State.at_rest(self.model)
-        self._scratch = _Scratch(self.model, solver.parts_for(self.model.num_points, self.threads))
+        self._scratch = _Scratch(self.model)
         self._center = self.model.rest_positions.mean(axis=0)
         size = max(self.model.width, self.model.height)
         self._runaway2 = (RUNAWAY_FACTOR * size) ** 2
@@ -137,9 +128,8 @@ class Simulation:
         self._handle_pos = np.zeros(3)
 
     @classmethod
-    def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-                  threads: int | None = None) -> Simulation:
-        return cls(load_scene(path, overrides), threads)
+    def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Simulation:
+        return cls(load_scene(path, overrides))
 
     # ------------------------------------------------------------------ state
 
@@ -214,7 +204,7 @@ class Simulation:
             st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share, st.runs, st.run_span,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
             bool(p.self_collision), m.thickness, self._span, s.planes[0], s.planes[1], s.forces,
-            s.c, s.over, s.lists.buffers(), self._handle, self._handle_pos, self._center, s.parts)
+            s.c, s.over, s.lists.buffers(), self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None

@@ -5,6 +5,6 @@ Every kernel takes NumPy arrays and plain numbers and is compiled with Numba;
 so that Python is entered once per frame, not once per substep.
 """
 
-from .step import PARALLEL_MIN_POINTS, advance, pack_planes, pack_spheres, parts_for
+from .step import advance, pack_planes, pack_spheres
 
-__all__ = ["PARALLEL_MIN_POINTS", "advance", "pack_planes", "pack_spheres", "parts_for"]
+__all__ = ["advance", "pack_planes", "pack_spheres"]

@@ -29,7 +29,7 @@ Positions are (3, N) coordinate planes; ``rest`` is the (N, 3) start layout.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .grid import BLOCK, KERNEL_OPTIONS
 
@@ -51,8 +51,8 @@ NEAR = 5
 """grid offsets up to this many rows and columns may be checked as a stencil"""
 
 # fields of the ``meta`` int64 array that carries the list's state between calls
-PAIRS, VALID, REBUILDS, COLS, PARTS = 0, 1, 2, 3, 4
-META_SIZE = 5
+PAIRS, VALID, REBUILDS, COLS = 0, 1, 2, 3
+META_SIZE = 4
 
 
 def near_stencil(rest: np.ndarray, rows: int, cols: int,
@@ -96,11 +96,9 @@ class NeighbourList:
     """The buffers of the cell grid and the neighbour list, allocated once per cloth."""
 
     def __init__(self, num_points: int, cols: int | None = None,
-                 near: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                 parts: int = 1) -> None:
+                 near: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
         """``cols`` and ``near`` (from :func:`near_stencil`) describe the cloth's
-        grid; without them every pair goes through the list. The list is built
-        in ``parts`` ranges of points, by as many threads where there are."""
+        grid; without them every pair goes through the list."""
         n = num_points
         self.cell_start = np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64)
         self.cell_of = np.zeros(n, dtype=np.int64)
@@ -113,7 +111,6 @@ class NeighbourList:
         self.count = np.zeros(n)
         self.meta = np.zeros(META_SIZE, dtype=np.int64)
         self.meta[COLS] = n if cols is None else cols
-        self.meta[PARTS] = parts
         if near is None:
             near = (np.zeros(0, np.int64), np.zeros((0, n)), np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64))
         self.near_offset, self.near_weight, self.near_table = near
@@ -212,68 +209,31 @@ def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, sl
 
 @njit(**EXACT_OPTIONS)
 def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, sorted_pos, pairs,
-               cols, near_table, parts):
+               cols, near_table):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
-    are. Pairs ``(dr, di)`` apart on a grid of ``cols`` columns are left out where
+    are, which may exceed the capacity: then only the first ones were stored.
+    Pairs ``(dr, di)`` apart on a grid of ``cols`` columns are left out where
     ``near_table[dr, di + NEAR]`` is set: the near stencil checks them.
-    Returns -1 when the points are not finite or spread wider than ``span``,
-    and a number above the capacity, one that would do, when they do not fit.
-
-    The points are queried in ``parts`` ranges, by threads where there are
-    more than one. Part t stores its pairs in the t-th share of the capacity;
-    the shares are then closed up, so the list is the same for any ``parts``.
+    Returns -1 when the points are not finite or spread wider than ``span``.
     """
+    n = P.shape[1]
     grid = _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
-    if grid[3] == 0.0:
+    size = grid[3]
+    if size == 0.0:
         return -1
-    share = pairs.shape[1] // parts
-    found = np.zeros(parts, dtype=np.int64)
-    if parts == 1:
-        found[0] = _query(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table,
-                          0, P.shape[1], pairs, 0, share)
-    else:
-        _query_parts(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table, pairs,
-                     share, found)
-    if found.max() > share:
-        return parts * found.max()
-    total = found[0]
-    for t in range(1, parts):
-        for j in range(found[t]):
-            pairs[0, total + j] = pairs[0, t * share + j]
-            pairs[1, total + j] = pairs[1, t * share + j]
-        total += found[t]
-    return total
-
-
-@njit(**EXACT_OPTIONS, parallel=True)
-def _query_parts(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table, pairs, share,
-                 found):
-    """:func:`_query` on ``len(found)`` equal ranges of points at once."""
-    n = slot.shape[0]
-    parts = found.shape[0]
-    for t in prange(parts):
-        found[t] = _query(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table,
-                          t * n // parts, (t + 1) * n // parts, pairs, t * share, share)
-
-
-@njit(**EXACT_OPTIONS)
-def _query(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table, lo, hi, pairs, base,
-           room):
-    """The list pairs whose first point is in ``lo:hi``, stored from ``pairs[:, base]``
-    on while they fit in ``room``; returns how many there are. ``grid`` and the
-    sorted arrays are :func:`_sort_into_cells`'s, on a grid of ``cols`` columns."""
-    x0, y0, z0, inv = grid[0], grid[1], grid[2], 1.0 / grid[3]
+    x0, y0, z0, inv = grid[0], grid[1], grid[2], 1.0 / size
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
     radius2 = radius * radius
     reach2 = reach * reach
+    capacity = pairs.shape[1]
     sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
     rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
     grid_row, grid_col = sorted_pos[6], sorted_pos[7]
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
-    for pk in range(lo, hi):
+    for pk in range(n):
         k = slot[pk]
         x, y, z = sx[k], sy[k], sz[k]
         ax, ay, az = rx[k], ry[k], rz[k]
@@ -307,9 +267,9 @@ def _query(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table,
                     if dr <= NEAR and abs(di) <= NEAR and near_table[dr, di + NEAR] != 0:
                         continue
                     pq = order[q]
-                    if found < room:
-                        pairs[0, base + found] = pk
-                        pairs[1, base + found] = pq
+                    if found < capacity:
+                        pairs[0, found] = pk
+                        pairs[1, found] = pq
                     found += 1
     return found
 
@@ -371,14 +331,14 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     if meta[VALID] == 0 or _drifted(P, reference, skin):
         radius = reach + skin
         found = build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                           sorted_pos, pairs, meta[COLS], near_table, meta[PARTS])
+                           sorted_pos, pairs, meta[COLS], near_table)
         if found < 0:
             meta[VALID] = 0
             return pairs, 0
         if found > pairs.shape[1]:
             pairs = np.empty((2, 2 * found), dtype=np.int32)
-            found = build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                               sorted_pos, pairs, meta[COLS], near_table, meta[PARTS])
+            build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
+                       sorted_pos, pairs, meta[COLS], near_table)
         meta[PAIRS] = found
         reference[:] = P
         meta[VALID] = 1

@@ -4,28 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numba
 import numpy as np
 from numba import njit
 
 from .collide import collide_planes, collide_spheres
-from .grid import integrate, integrate_parts, provot
+from .grid import integrate, provot
 from .self_collide import self_collide
-
-
-PARALLEL_MIN_POINTS = 5000
-"""cloths with fewer points run on one thread: a parallel region costs a few µs to
-start, and at 50x50 that was more than it saved"""
-
-
-def parts_for(num_points: int, threads: int | None = None) -> int:
-    """How many parts a cloth's kernels are split into: ``threads`` (default numba's
-    thread count), or 1 for cloths under PARALLEL_MIN_POINTS points."""
-    if threads is None:
-        threads = numba.get_num_threads()
-    if threads < 1:
-        raise ValueError(f"threads must be at least 1, not {threads}")
-    return 1 if num_points < PARALLEL_MIN_POINTS else int(threads)
 
 
 def pack_spheres(spheres: Sequence) -> np.ndarray:
@@ -78,8 +62,7 @@ def _from_planes(P, pos):
 @njit(cache=True, boundscheck=False)
 def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
             start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
-            self_collision, thickness, span, P, L, F, c, over, lists, handle, handle_pos, center,
-            parts):
+            self_collision, thickness, span, P, L, F, c, over, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
     Returns (largest squared distance of a point from ``center`` afterwards,
@@ -93,9 +76,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     ``handle`` (or -1) is a point held at ``handle_pos`` by the user's grab:
     it moves kinematically. The kernels work on (3, N) coordinate planes
     ``P`` (positions) and ``L`` (last positions); ``F``, ``c`` and ``over``
-    are the scratch of :func:`integrate` and :func:`provot`. The spring
-    forces are split over ``parts`` threads where it is more than one (the
-    list build by the count in ``lists``).
+    are the scratch of :func:`integrate` and :func:`provot`.
     """
     (cell_start, cell_of, order, slot, sorted_pos, reference, pairs, push, contacts, meta,
      near_offset, near_weight, near_table, near_flags, near_scratch) = lists
@@ -103,11 +84,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     _to_planes(last, L)
     dt2 = dt * dt
     for _ in range(substeps):
-        if parts > 1:
-            integrate_parts(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid,
-                            rest_length, F, parts)
-        else:
-            integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest_length, F)
+        integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest_length, F)
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if self_collision:
