@@ -190,7 +190,7 @@ def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, sl
     for c in range(cells):
         cell_start[c] = cell_start[c + 1]
     cell_start[cells] = n
-    row, col = 0.0, 0.0  # counted along: a division per candidate pair cost a fifth of the build
+    row, col = 0.0, 0.0  # counted along: dividing them out per candidate pair cost 5-10% of the build
     for p in range(n):
         k = slot[p]
         order[k] = p
