@@ -11,7 +11,7 @@ from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                   integrate, provot)
-from clothsim.solver.self_collide import NeighbourList, self_collide
+from clothsim.solver.self_collide import SHORT_RANGE, NeighbourList, build_list, self_collide
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
@@ -305,6 +305,35 @@ def test_self_collision_matches_brute_force_as_points_move():
         if step % 10 == 9:
             pos[rng.integers(n)] = rng.uniform(0, 0.3, 3)  # one point jumps
     assert 1 < lists.rebuilds < 40
+
+
+def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
+    """a dense clump (candidate ranges far longer than SHORT_RANGE, the vector
+    path) and a sparse cloud (short ranges, the plain path) in one search: the
+    list holds each pair closer than the radius and apart at rest exactly once"""
+    rng = np.random.default_rng(11)
+    clump = rng.uniform(0, 0.05, size=(300, 3))
+    cloud = rng.uniform(0.2, 1.2, size=(300, 3))
+    pos = np.concatenate([clump, cloud])
+    rest = rng.uniform(0, 3, size=pos.shape)
+    rest[:20] = rest[0] + rng.uniform(0, 0.001, size=(20, 3))  # close at rest: never listed
+    reach, radius = 0.02, 0.03
+    n = len(pos)
+    x = NeighbourList(n)
+    x.pairs = np.zeros((2, n * n // 2), dtype=np.int32)
+    b = x.buffers()
+    found = build_list(planes(pos), rest, reach, radius, np.inf, *b[:5], x.pairs, x.meta[3],
+                       x.near_table, x.candidates)
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
+    r = np.linalg.norm(rest[:, None] - rest[None], axis=2)
+    expected = {(a, b) for a, b in zip(*np.nonzero(np.triu((d < radius) & (r >= reach), 1)))}
+    listed = [tuple(sorted(p)) for p in x.pairs[:, :found].T.tolist()]
+    assert len(listed) == len(set(listed)) == found
+    assert set(listed) == expected
+    assert any(a < 20 and b < 20 for a, b in zip(*np.nonzero(np.triu(d < radius, 1))))
+    # the clump's cells hold far more points than SHORT_RANGE, the cloud's far fewer
+    counts = np.diff(x.cell_start[:int(x.cell_start.argmax()) + 1])
+    assert counts.max() > 4 * SHORT_RANGE and np.median(counts[counts > 0]) < SHORT_RANGE
 
 
 def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():

@@ -50,6 +50,10 @@ CELLS_PER_POINT = 8
 NEAR = 5
 """grid offsets up to this many rows and columns may be checked as a stencil"""
 
+SHORT_RANGE = 16
+"""candidate ranges shorter than this are tested in a plain loop: the vector
+loop's setup costs more than it saves on them"""
+
 # fields of the ``meta`` int64 array that carries the list's state between calls
 PAIRS, VALID, REBUILDS, COLS = 0, 1, 2, 3
 META_SIZE = 4
@@ -105,6 +109,7 @@ class NeighbourList:
         self.order = np.zeros(n, dtype=np.int64)
         self.slot = np.zeros(n, dtype=np.int64)
         self.sorted_pos = np.zeros((8, n))  # position, rest position, grid row and column per slot
+        self.candidates = np.zeros((2, n), dtype=np.int64)  # flags and slots of one point's candidates
         self.reference = np.zeros((3, n))
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
         self.push = np.zeros((3, n))
@@ -120,8 +125,9 @@ class NeighbourList:
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
-                self.reference, self.pairs, self.push, self.count, self.meta, self.near_offset,
-                self.near_weight, self.near_table, self.near_flags, self.near_scratch)
+                self.candidates, self.reference, self.pairs, self.push, self.count, self.meta,
+                self.near_offset, self.near_weight, self.near_table, self.near_flags,
+                self.near_scratch)
 
     @property
     def rebuilds(self) -> int:
@@ -209,13 +215,21 @@ def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, sl
 
 @njit(**EXACT_OPTIONS)
 def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, sorted_pos, pairs,
-               cols, near_table):
+               cols, near_table, candidates):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
     are, which may exceed the capacity: then only the first ones were stored.
     Pairs ``(dr, di)`` apart on a grid of ``cols`` columns are left out where
     ``near_table[dr, di + NEAR]`` is set: the near stencil checks them.
     Returns -1 when the points are not finite or spread wider than ``span``.
+
+    Each point first tests its candidates against the radius in a loop that
+    only stores a flag per candidate, which LLVM vectorises; the slots inside
+    are then collected into ``candidates[1]`` without a branch, and only
+    those (one in eight on a piled-up cloth) go through the other tests.
+    The candidate ranges are walked with unsigned indices: with signed ones
+    numba adds a negative-index wraparound that turns the loads into
+    gathers. ``candidates`` is (2, N) int64 scratch.
     """
     n = P.shape[1]
     grid = _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
@@ -230,6 +244,7 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
     rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
     grid_row, grid_col = sorted_pos[6], sorted_pos[7]
+    hit, near = candidates[0], candidates[1]
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
@@ -245,32 +260,50 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
         iy1 = min(np.int64((y + radius - y0) * inv), ny - 1)
         iz0 = max(np.int64(np.floor((z - radius - z0) * inv)), 0)
         iz1 = min(np.int64((z + radius - z0) * inv), nz - 1)
+        inside = 0
         for iz in range(iz0, iz1 + 1):
             for iy in range(iy0, iy1 + 1):
                 row = (iz * ny + iy) * nx
                 # each pair once: only slots after this point's own
-                for q in range(max(cell_start[row + ix0], k + 1), cell_start[row + ix1 + 1]):
+                lo = max(cell_start[row + ix0], k + 1)
+                hi = cell_start[row + ix1 + 1]
+                if hi <= lo:
+                    continue
+                ulo = np.uint64(lo)
+                if hi - lo < SHORT_RANGE:
+                    for q in range(ulo, np.uint64(hi)):
+                        dx = x - sx[q]
+                        dy = y - sy[q]
+                        dz = z - sz[q]
+                        near[inside] = q
+                        inside += 1 if dx * dx + dy * dy + dz * dz < radius2 else 0
+                    continue
+                for q in range(ulo, np.uint64(hi)):
                     dx = x - sx[q]
                     dy = y - sy[q]
                     dz = z - sz[q]
-                    if dx * dx + dy * dy + dz * dz >= radius2:
-                        continue
-                    ex = ax - rx[q]
-                    ey = ay - ry[q]
-                    ez = az - rz[q]
-                    if ex * ex + ey * ey + ez * ez < reach2:
-                        continue
-                    dr = np.int64(grid_row[q] - gr)
-                    di = np.int64(grid_col[q] - gc)
-                    if dr < 0 or (dr == 0 and di < 0):
-                        dr, di = -dr, -di
-                    if dr <= NEAR and abs(di) <= NEAR and near_table[dr, di + NEAR] != 0:
-                        continue
-                    pq = order[q]
-                    if found < capacity:
-                        pairs[0, found] = pk
-                        pairs[1, found] = pq
-                    found += 1
+                    hit[q - ulo] = 1 if dx * dx + dy * dy + dz * dz < radius2 else 0
+                for j in range(hi - lo):
+                    near[inside] = lo + j
+                    inside += hit[j]
+        for j in range(inside):
+            q = near[j]
+            ex = ax - rx[q]
+            ey = ay - ry[q]
+            ez = az - rz[q]
+            if ex * ex + ey * ey + ez * ez < reach2:
+                continue
+            dr = np.int64(grid_row[q] - gr)
+            di = np.int64(grid_col[q] - gc)
+            if dr < 0 or (dr == 0 and di < 0):
+                dr, di = -dr, -di
+            if dr <= NEAR and abs(di) <= NEAR and near_table[dr, di + NEAR] != 0:
+                continue
+            pq = order[q]
+            if found < capacity:
+                pairs[0, found] = pk
+                pairs[1, found] = pq
+            found += 1
     return found
 
 
@@ -314,7 +347,7 @@ def _drifted(P, reference, skin):
 
 @njit(**EXACT_OPTIONS)
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
-                 sorted_pos, reference, pairs, push, count, meta, near_offset, near_weight,
+                 sorted_pos, candidates, reference, pairs, push, count, meta, near_offset, near_weight,
                  near_table, near_flags, near_scratch):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
@@ -331,14 +364,14 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     if meta[VALID] == 0 or _drifted(P, reference, skin):
         radius = reach + skin
         found = build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                           sorted_pos, pairs, meta[COLS], near_table)
+                           sorted_pos, pairs, meta[COLS], near_table, candidates)
         if found < 0:
             meta[VALID] = 0
             return pairs, 0
         if found > pairs.shape[1]:
             pairs = np.empty((2, 2 * found), dtype=np.int32)
             build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                       sorted_pos, pairs, meta[COLS], near_table)
+                       sorted_pos, pairs, meta[COLS], near_table, candidates)
         meta[PAIRS] = found
         reference[:] = P
         meta[VALID] = 1

@@ -78,7 +78,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     ``P`` (positions) and ``L`` (last positions); ``F``, ``c`` and ``over``
     are the scratch of :func:`integrate` and :func:`provot`.
     """
-    (cell_start, cell_of, order, slot, sorted_pos, reference, pairs, push, contacts, meta,
+    (cell_start, cell_of, order, slot, sorted_pos, candidates, reference, pairs, push, contacts, meta,
      near_offset, near_weight, near_table, near_flags, near_scratch) = lists
     _to_planes(pos, P)
     _to_planes(last, L)
@@ -89,7 +89,7 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
-                                    cell_of, order, slot, sorted_pos, reference, pairs, push,
+                                    cell_of, order, slot, sorted_pos, candidates, reference, pairs, push,
                                     contacts, meta, near_offset, near_weight, near_table,
                                     near_flags, near_scratch)
         collide_spheres(P, L, free, spheres)
