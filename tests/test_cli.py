@@ -7,8 +7,10 @@ import sys
 
 import pytest
 
-from clothsim import __version__
-from clothsim.cli import main
+import numpy as np
+
+from clothsim import Simulation, __version__
+from clothsim.cli import main, run_with_progress
 
 from .conftest import SCENES, small_scene
 
@@ -35,6 +37,19 @@ def test_simulate_writes_obj_and_summary(tmp_path, write_scene, capsys):
     assert code == 0, err
     assert "45 frames" in out and "substeps/s" in out and "wall" in out
     assert out_obj.read_text().count("\nv ") == 256
+
+
+def test_timed_run_loads_kernels_without_advancing():
+    """the kernel load before the timer starts moves nothing: the timed run ends
+    bit-identical to stepping the same frames directly"""
+    timed = Simulation.from_file(SCENES / "selfCollision.json")
+    frames, wall = run_with_progress(timed, 0.1, show=False)
+    direct = Simulation.from_file(SCENES / "selfCollision.json")
+    for _ in range(frames):
+        direct.step()
+    assert frames == 9 and wall > 0 and timed.state.frame == 9
+    assert timed.state.time == direct.state.time
+    np.testing.assert_array_equal(timed.positions, direct.positions)
 
 
 def test_set_overrides_scene_values(tmp_path, capsys):
