@@ -11,7 +11,7 @@ from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                   integrate, provot)
-from clothsim.solver.self_collide import SHORT_RANGE, NeighbourList, build_list, self_collide
+from clothsim.solver.self_collide import SHORT_RANGE, NeighbourList, _drifted, build_list, self_collide
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
@@ -334,6 +334,26 @@ def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
     # the clump's cells hold far more points than SHORT_RANGE, the cloud's far fewer
     counts = np.diff(x.cell_start[:int(x.cell_start.argmax()) + 1])
     assert counts.max() > 4 * SHORT_RANGE and np.median(counts[counts > 0]) < SHORT_RANGE
+
+
+def test_drift_test_bounds_every_pair():
+    """the list is kept while no two displacements can differ by the skin, whichever
+    points moved, and given up as soon as two might or a coordinate is not finite"""
+    rng = np.random.default_rng(2)
+    ref = rng.uniform(0, 1, size=(3, 5000))
+    skin = 0.01
+    assert not _drifted(ref + [[0.3], [-0.2], [0.1]], ref, skin)  # all alike: rigid shift
+    part = ref.copy()
+    part[1, :500] -= 0.9 * skin  # a tenth falls, the rest stays: pairs differ by 0.9 skin
+    assert not _drifted(part, ref, skin)
+    one = ref.copy()
+    one[0, 4321] += 1.01 * skin  # a single point, off the sample's stride, moves past the skin
+    assert _drifted(one, ref, skin)
+    spread = ref + rng.normal(scale=0.2 * skin, size=ref.shape)
+    assert _drifted(spread, ref, skin)  # random motion: some pair may differ by the skin
+    bad = ref.copy()
+    bad[2, 17] = np.nan
+    assert _drifted(bad, ref, skin)
 
 
 def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():
