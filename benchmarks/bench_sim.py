@@ -1,7 +1,8 @@
 """Simulation throughput: substeps/s and point updates/s per standard scene and size.
 
-Prints one JSON object per measurement. Single-threaded (the kernels are
-serial). The cost of the springs (forces and the Provot pass) and of
+Prints one JSON object per measurement. The figures are single-threaded;
+``substeps_per_s_threads`` is the same run with the substep cut over numba's
+thread count (``NUMBA_NUM_THREADS``, by default the machine's cores). The cost of the springs (forces and the Provot pass) and of
 self-collision per substep come from differences of runs with each switched
 off, measured back to back. Each measurement is the median of ``--repeats`` runs of the same
 stretch of simulated time from the scene's start, after a warm-up that
@@ -17,6 +18,8 @@ import statistics
 import sys
 import time
 from pathlib import Path
+
+import numba
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import emit, machine, peak_rss_mib  # noqa: E402
@@ -39,11 +42,11 @@ def sized(scene: str, n: int) -> list[str]:
 
 
 def measure(scene: str, n: int, seconds: float, self_collision: bool, repeats: int,
-            springs: bool = True) -> tuple[float, float]:
+            springs: bool = True, threads: int = 1) -> tuple[float, float]:
     """(median substeps/s, neighbour-list rebuilds per 100 substeps)"""
     rates, rebuilds = [], []
     for _ in range(repeats):
-        sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n))
+        sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n), threads=threads)
         sim.params.self_collision = self_collision and sim.params.self_collision
         if not springs:
             sim.params.enable_structural = sim.params.enable_shearing = sim.params.enable_bending = False
@@ -64,23 +67,27 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     info = machine()
-    warm = Simulation.from_file(ROOT / "scenes" / "pinned2.json")
-    warm.step()  # compile (or load cached) kernels outside the timings
+    threads = numba.get_num_threads()
+    for t in {1, threads}:
+        Simulation.from_file(ROOT / "scenes" / "pinned2.json", threads=t).step(substeps=0)  # load the kernels
     for n in (int(s) for s in args.sizes.split(",")):
         for scene in args.scenes.split(","):
             seconds = SECONDS.get(n, 0.1)
             with_self, rebuilds = measure(scene, n, seconds, True, args.repeats)
             without, _ = measure(scene, n, seconds, False, args.repeats)
             bare, _ = measure(scene, n, seconds, False, args.repeats, springs=False)
+            split, _ = measure(scene, n, seconds, True, args.repeats, threads=threads)
             us = 1e6 / with_self, 1e6 / without, 1e6 / bare  # microseconds per substep
             emit({"bench": "simulate", "scene": scene, "points": n * n, "grid": f"{n}x{n}",
                   "simulated_s": seconds, "substeps_per_s": round(with_self, 1),
                   "point_updates_per_s": round(with_self * n * n),
                   "substeps_per_s_no_self_collision": round(without, 1),
+                  "threads": threads, "substeps_per_s_threads": round(split, 1),
                   "springs_us_per_substep": round(us[1] - us[2], 1),
                   "self_collision_us_per_substep": round(us[0] - us[1], 1),
                   "list_rebuilds_per_100_substeps": round(rebuilds, 1),
                   "realtime_factor": round(with_self / 2700.0, 3),
+                  "realtime_factor_threads": round(split / 2700.0, 3),
                   "peak_rss_mib": round(peak_rss_mib(), 1), **info})
 
 

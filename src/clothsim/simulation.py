@@ -85,8 +85,9 @@ class State:
 class _Scratch:
     """Buffers the kernels reuse every substep, allocated once per model."""
 
-    def __init__(self, model: ClothModel) -> None:
+    def __init__(self, model: ClothModel, parts: int) -> None:
         n = model.num_points
+        self.parts = parts
         self.stencil = build_stencil(model)
         self.free = (~model.pinned).astype(np.float64)
         self.planes = np.zeros((2, 3, n))  # positions, last positions
@@ -94,7 +95,8 @@ class _Scratch:
         self.c = np.zeros((6, BLOCK))
         self.over = np.zeros(n // BLOCK + 2)
         self.lists = NeighbourList(n, model.num_width_points, near_stencil(
-            model.rest_positions, model.num_height_points, model.num_width_points, model.thickness))
+            model.rest_positions, model.num_height_points, model.num_width_points, model.thickness),
+            parts)
 
 
 @dataclass
@@ -103,9 +105,16 @@ class Simulation:
 
     ``params``, ``spheres`` and ``planes`` (friction, position) may be edited
     between frames; nothing is rebuilt for it.
+
+    ``threads``: how many threads share a substep's spring forces and
+    self-collision (None: one for cloths under PARALLEL_MIN_POINTS points,
+    else numba's thread count, which ``NUMBA_NUM_THREADS`` sets). The result
+    depends on this count (the order of the self-collision sums), not on
+    the machine.
     """
 
     scene: Scene
+    threads: int | None = None
     model: ClothModel = field(init=False)
     params: Params = field(init=False)
     state: State = field(init=False)
@@ -118,7 +127,7 @@ class Simulation:
         self.spheres = copy.deepcopy(self.scene.spheres)
         self.planes = copy.deepcopy(self.scene.planes)
         self.state = State.at_rest(self.model)
-        self._scratch = _Scratch(self.model)
+        self._scratch = _Scratch(self.model, solver.parts_for(self.model.num_points, self.threads))
         self._center = self.model.rest_positions.mean(axis=0)
         size = max(self.model.width, self.model.height)
         self._runaway2 = (RUNAWAY_FACTOR * size) ** 2
@@ -128,8 +137,9 @@ class Simulation:
         self._handle_pos = np.zeros(3)
 
     @classmethod
-    def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Simulation:
-        return cls(load_scene(path, overrides))
+    def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = (),
+                  threads: int | None = None) -> Simulation:
+        return cls(load_scene(path, overrides), threads)
 
     # ------------------------------------------------------------------ state
 
@@ -197,7 +207,8 @@ class Simulation:
         k_over_m = (np.array([k, k, 0.2 * k]) * p.enabled)[SET_KIND]
         m, s = self.model, self._scratch
         st = s.stencil
-        far2, s.lists.pairs = solver.advance(
+        advance = solver.advance if s.parts == 1 else solver.advance_parallel
+        far2, s.lists.pairs = advance(
             self.state.positions, self.state.last_positions, m.rest_positions, s.free,
             np.asarray(p.gravity, dtype=np.float64), k_over_m, p.enabled[SET_KIND],
             1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,

@@ -5,6 +5,6 @@ Every kernel takes NumPy arrays and plain numbers and is compiled with Numba;
 so that Python is entered once per frame, not once per substep.
 """
 
-from .step import advance, pack_planes, pack_spheres
+from .step import advance, advance_parallel, pack_planes, pack_spheres, parts_for
 
-__all__ = ["advance", "pack_planes", "pack_spheres"]
+__all__ = ["advance", "advance_parallel", "pack_planes", "pack_spheres", "parts_for"]

@@ -167,51 +167,74 @@ def integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid
     be moved as soon as its chunk is gathered: no later chunk reads it.
     """
     n = P.shape[1]
-    pad = F.shape[2] - n
+    integrate_range(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest, F, 0, n, 0)
+
+
+@njit(**KERNEL_OPTIONS)
+def integrate_range(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest, F,
+                    first, stop, moved):
+    """:func:`integrate` on the springs that start at points ``first:stop``, moving
+    only the points from ``moved`` on: a thread's part of the cloth, whose
+    first points the previous part's springs still read."""
+    for lo in range(first, stop, CHUNK):
+        hi = min(lo + CHUNK, stop)
+        spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi)
+        if lo >= moved:
+            verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi)
+
+
+@njit(**KERNEL_OPTIONS)
+def spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi):
+    """The forces of the springs that start at points ``lo:hi``, into ``F``; see :func:`integrate`."""
+    pad = F.shape[2] - P.shape[1]
     x, y, z = P[0], P[1], P[2]
-    for lo in range(0, n, CHUNK):
-        hi = min(lo + CHUNK, n)
-        for s in range(6):
-            k = k_over_m[s]
-            m = min(hi, count[s]) - lo
-            fx, fy, fz = F[s, 0, pad + lo:], F[s, 1, pad + lo:], F[s, 2, pad + lo:]
-            if k == 0.0:
-                for p in range(m):
-                    fx[p] = 0.0
-                    fy[p] = 0.0
-                    fz[p] = 0.0
-                continue
-            oa, ob = start[s] + lo, end[s] + lo
-            # views that start at each end: plain p indexing lets LLVM skip the
-            # negative-index wraparound, which would block vectorisation
-            xa, ya, za = x[oa:], y[oa:], z[oa:]
-            xb, yb, zb = x[ob:], y[ob:], z[ob:]
-            w, rl = valid[s, lo:], rest[s, lo:]
+    for s in range(6):
+        k = k_over_m[s]
+        m = min(hi, count[s]) - lo
+        fx, fy, fz = F[s, 0, pad + lo:], F[s, 1, pad + lo:], F[s, 2, pad + lo:]
+        if k == 0.0:
             for p in range(m):
-                dx = xb[p] - xa[p]
-                dy = yb[p] - ya[p]
-                dz = zb[p] - za[p]
-                f = k * w[p] * (1.0 - rl[p] * _inv_length(dx * dx + dy * dy + dz * dz))
-                fx[p] = f * dx
-                fy[p] = f * dy
-                fz[p] = f * dz
-        fr = free[lo:]
-        for c in range(3):
-            xc, lc = P[c, lo:hi], L[c, lo:]
-            g = gravity[c]
-            b = pad + lo
-            f0a, f0b = F[0, c, b - start[0]:], F[0, c, b - end[0]:]
-            f1a, f1b = F[1, c, b - start[1]:], F[1, c, b - end[1]:]
-            f2a, f2b = F[2, c, b - start[2]:], F[2, c, b - end[2]:]
-            f3a, f3b = F[3, c, b - start[3]:], F[3, c, b - end[3]:]
-            f4a, f4b = F[4, c, b - start[4]:], F[4, c, b - end[4]:]
-            f5a, f5b = F[5, c, b - start[5]:], F[5, c, b - end[5]:]
-            for q in range(hi - lo):
-                a = (g + (f0a[q] - f0b[q]) + (f1a[q] - f1b[q]) + (f2a[q] - f2b[q])
-                     + (f3a[q] - f3b[q]) + (f4a[q] - f4b[q]) + (f5a[q] - f5b[q]))
-                xq = xc[q]
-                xc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a * dt2)
-                lc[q] = xq
+                fx[p] = 0.0
+                fy[p] = 0.0
+                fz[p] = 0.0
+            continue
+        oa, ob = start[s] + lo, end[s] + lo
+        # views that start at each end: plain p indexing lets LLVM skip the
+        # negative-index wraparound, which would block vectorisation
+        xa, ya, za = x[oa:], y[oa:], z[oa:]
+        xb, yb, zb = x[ob:], y[ob:], z[ob:]
+        w, rl = valid[s, lo:], rest[s, lo:]
+        for p in range(m):
+            dx = xb[p] - xa[p]
+            dy = yb[p] - ya[p]
+            dz = zb[p] - za[p]
+            f = k * w[p] * (1.0 - rl[p] * _inv_length(dx * dx + dy * dy + dz * dz))
+            fx[p] = f * dx
+            fy[p] = f * dy
+            fz[p] = f * dz
+
+
+@njit(**KERNEL_OPTIONS)
+def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi):
+    """Points ``lo:hi`` gather their spring forces from ``F`` and take their Verlet step."""
+    pad = F.shape[2] - P.shape[1]
+    fr = free[lo:]
+    for c in range(3):
+        xc, lc = P[c, lo:hi], L[c, lo:]
+        g = gravity[c]
+        b = pad + lo
+        f0a, f0b = F[0, c, b - start[0]:], F[0, c, b - end[0]:]
+        f1a, f1b = F[1, c, b - start[1]:], F[1, c, b - end[1]:]
+        f2a, f2b = F[2, c, b - start[2]:], F[2, c, b - end[2]:]
+        f3a, f3b = F[3, c, b - start[3]:], F[3, c, b - end[3]:]
+        f4a, f4b = F[4, c, b - start[4]:], F[4, c, b - end[4]:]
+        f5a, f5b = F[5, c, b - start[5]:], F[5, c, b - end[5]:]
+        for q in range(hi - lo):
+            a = (g + (f0a[q] - f0b[q]) + (f1a[q] - f1b[q]) + (f2a[q] - f2b[q])
+                 + (f3a[q] - f3b[q]) + (f4a[q] - f4b[q]) + (f5a[q] - f5b[q]))
+            xq = xc[q]
+            xc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a * dt2)
+            lc[q] = xq
 
 
 @njit(**KERNEL_OPTIONS)

@@ -29,7 +29,7 @@ Positions are (3, N) coordinate planes; ``rest`` is the (N, 3) start layout.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from .grid import BLOCK, KERNEL_OPTIONS
 
@@ -104,35 +104,37 @@ class NeighbourList:
     """The buffers of the cell grid and the neighbour list, allocated once per cloth."""
 
     def __init__(self, num_points: int, cols: int | None = None,
-                 near: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
+                 near: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, parts: int = 1) -> None:
         """``cols`` and ``near`` (from :func:`near_stencil`) describe the cloth's
-        grid; without them every pair goes through the list."""
+        grid; without them every pair goes through the list. ``parts``: how many
+        threads may share the work; each has its own scratch and pushes."""
         n = num_points
         self.cell_start = np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64)
         self.cell_of = np.zeros(n, dtype=np.int64)
         self.order = np.zeros(n, dtype=np.int64)
         self.slot = np.zeros(n, dtype=np.int64)
         self.sorted_pos = np.zeros((8, n))  # position, rest position, grid row and column per slot
-        self.candidates = np.zeros((2, n), dtype=np.int64)  # flags and slots of one point's candidates
+        self.candidates = np.zeros((parts, 2, n), dtype=np.int64)  # flags and slots of one point's candidates
         self.reference = np.zeros((3, n))
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
-        self.push = np.zeros((3, n))
-        self.count = np.zeros(n)
+        self.push = np.zeros((parts, 3, n))
+        self.count = np.zeros((parts, n))
         self.meta = np.zeros(META_SIZE, dtype=np.int64)
         self.meta[COLS] = n if cols is None else cols
         if near is None:
             near = (np.zeros(0, np.int64), np.zeros((0, n), np.uint8),
                     np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64))
         self.near_offset, self.near_weight, self.near_table = near
-        self.near_flags = np.zeros(n // BLOCK + 2)
-        self.near_scratch = np.zeros((4, BLOCK))
+        self.near_flags = np.zeros((parts, n // BLOCK + 2))
+        self.near_scratch = np.zeros((parts, 4, BLOCK))
+        self.tally = np.zeros((parts, 2), dtype=np.int64)  # pairs found and pairs pushed per part
 
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
                 self.candidates, self.reference, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_flags,
-                self.near_scratch)
+                self.near_scratch, self.tally)
 
     @property
     def rebuilds(self) -> int:
@@ -227,6 +229,21 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     Pairs ``(dr, di)`` apart on a grid of ``cols`` columns are left out where
     ``near_table[dr, di + NEAR]`` is set: the near stencil checks them.
     Returns -1 when the points are not finite or spread wider than ``span``.
+    ``candidates`` is the (parts, 2, N) int64 scratch of :func:`query_points`.
+    """
+    grid = _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
+    if grid[3] == 0.0:
+        return -1
+    return query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table,
+                        candidates[0], 0, P.shape[1], pairs, 0, pairs.shape[1])
+
+
+@njit(**EXACT_OPTIONS)
+def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table, candidates,
+                 first, stop, pairs, base, capacity):
+    """The list pairs (pk, q) of points ``first <= pk < stop`` from the sorted
+    cells of :func:`_sort_into_cells` into ``pairs[:, base:base + capacity]``;
+    returns how many there are, which may exceed the capacity.
 
     Each point first tests its candidates against the radius in a loop that
     only stores a flag per candidate, which LLVM vectorises; the slots inside
@@ -236,16 +253,11 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     numba adds a negative-index wraparound that turns the loads into
     gathers. ``candidates`` is (2, N) int64 scratch.
     """
-    n = P.shape[1]
-    grid = _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
     size = grid[3]
-    if size == 0.0:
-        return -1
     x0, y0, z0, inv = grid[0], grid[1], grid[2], 1.0 / size
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
     radius2 = radius * radius
     reach2 = reach * reach
-    capacity = pairs.shape[1]
     sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
     rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
     grid_row, grid_col = sorted_pos[6], sorted_pos[7]
@@ -253,7 +265,7 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
-    for pk in range(n):
+    for pk in range(first, stop):
         k = slot[pk]
         x, y, z = sx[k], sy[k], sz[k]
         ax, ay, az = rx[k], ry[k], rz[k]
@@ -306,10 +318,16 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
                 continue
             pq = order[q]
             if found < capacity:
-                pairs[0, found] = pk
-                pairs[1, found] = pq
+                pairs[0, base + found] = pk
+                pairs[1, base + found] = pq
             found += 1
     return found
+
+
+@njit(cache=True, inline="always")
+def part_range(n, parts, t):
+    """Items ``lo:hi`` of part t when n items are cut into ``parts`` nearly equal ranges."""
+    return t * n // parts, (t + 1) * n // parts
 
 
 DRIFT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy",
@@ -370,10 +388,10 @@ def _drifted(P, reference, skin):
     return outside_mean > 0.0 and outside_mid > 0.0
 
 
-@njit(**EXACT_OPTIONS)
+@njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
                  sorted_pos, candidates, reference, pairs, push, count, meta, near_offset, near_weight,
-                 near_table, near_flags, near_scratch):
+                 near_table, near_flags, near_scratch, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -382,32 +400,103 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     array is a new one when the list outgrew it. When the points are spread
     wider than ``span`` [m] (a run that blew up) no list is built and nothing
     is pushed.
+
+    The work is cut into as many parts as the buffers have (``push.shape[0]``),
+    each with its own pushes, summed at the end. Inlined into a
+    ``parallel=True`` caller the parts run on threads (``prange``); called
+    from serial code they run one after another. The result depends on the
+    number of parts (the order of the sums), not on the threads.
     """
     n = P.shape[1]
+    parts = push.shape[0]
     reach = 2.0 * thickness
     skin = SKIN_FACTOR * reach
     if meta[VALID] == 0 or _drifted(P, reference, skin):
         radius = reach + skin
-        found = build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                           sorted_pos, pairs, meta[COLS], near_table, candidates)
-        if found < 0:
+        grid = _sort_into_cells(P, rest, radius, span, meta[COLS], cell_start, cell_of, order, slot,
+                                sorted_pos)
+        if grid[3] == 0.0:
             meta[VALID] = 0
             return pairs, 0
-        if found > pairs.shape[1]:
-            pairs = np.empty((2, 2 * found), dtype=np.int32)
-            build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot,
-                       sorted_pos, pairs, meta[COLS], near_table, candidates)
-        meta[PAIRS] = found
-        reference[:] = P
+        share = pairs.shape[1] // parts
+        for t in prange(parts):
+            lo, hi = part_range(n, parts, t)
+            tally[t, 0] = query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
+                                       near_table, candidates[t], lo, hi, pairs, t * share, share)
+        most = 0
+        for t in range(parts):
+            most = max(most, tally[t, 0])
+        if most > share:
+            share = 2 * most
+            pairs = np.empty((2, parts * share), dtype=np.int32)
+            for t in prange(parts):
+                lo, hi = part_range(n, parts, t)
+                query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
+                             near_table, candidates[t], lo, hi, pairs, t * share, share)
+        meta[PAIRS] = _close_up(pairs, tally, share)
+        _copy(P, reference)
         meta[VALID] = 1
         meta[REBUILDS] += 1
-    push[:] = 0.0
-    count[:] = 0.0
-    hits = near_pushes(P, reach, near_offset, near_weight, push, count, near_flags, near_scratch)
+    if meta[VALID] == 0:
+        return pairs, 0
+    listed = meta[PAIRS]
+    for t in prange(parts):
+        _clear(push[t], count[t])
+        h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], near_flags[t],
+                        near_scratch[t], t, parts)
+        k0, k1 = part_range(listed, parts, t)
+        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, k1, push[t], count[t])
+    hits = 0
+    for t in range(parts):
+        hits += tally[t, 1]
+    if hits > 0:
+        inv_steps = 1.0 / simulation_steps
+        for t in prange(parts):
+            lo, hi = part_range(n, parts, t)
+            apply_pushes(P, push, count, free, inv_steps, lo, hi)
+    return pairs, hits
+
+
+@njit(**EXACT_OPTIONS)
+def _close_up(pairs, tally, share):
+    """Move each part's pairs (part t's from ``t * share``) into one run; returns their number."""
+    total = tally[0, 0]
+    for t in range(1, tally.shape[0]):
+        base = t * share
+        for j in range(tally[t, 0]):
+            pairs[0, total + j] = pairs[0, base + j]
+            pairs[1, total + j] = pairs[1, base + j]
+        total += tally[t, 0]
+    return total
+
+
+@njit(**KERNEL_OPTIONS)
+def _copy(src, dst):
+    for c in range(src.shape[0]):
+        a, b = src[c], dst[c]
+        for p in range(a.shape[0]):
+            b[p] = a[p]
+
+
+@njit(**KERNEL_OPTIONS)
+def _clear(push, count):
+    for c in range(3):
+        pc = push[c]
+        for p in range(pc.shape[0]):
+            pc[p] = 0.0
+    for p in range(count.shape[0]):
+        count[p] = 0.0
+
+
+@njit(**EXACT_OPTIONS)
+def pair_pushes(P, reach, pairs, k0, k1, push, count):
+    """Add the pushes of listed pairs ``k0:k1`` closer than ``reach`` to ``push`` (3, N)
+    and ``count`` (N,); returns how many pairs that was."""
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
     px, py, pz = push[0], push[1], push[2]
-    for k in range(meta[PAIRS]):
+    hits = 0
+    for k in range(k0, k1):
         # unsigned: a signed index costs a negative-index check per access, 12-20% here
         a = np.uint64(pairs[0, k])
         b = np.uint64(pairs[1, k])
@@ -428,19 +517,36 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
         count[a] += 1.0
         count[b] += 1.0
         hits += 1
-    if hits > 0:
-        inv_steps = 1.0 / simulation_steps
-        for c in range(3):
-            xc, pc = P[c], push[c]
-            for p in range(n):
-                xc[p] += pc[p] * free[p] * inv_steps / max(count[p], 1.0)
-    return pairs, hits
+    return hits
 
 
 @njit(**KERNEL_OPTIONS)
-def near_pushes(P, reach, offsets, weight, push, count, flags, c):
+def apply_pushes(P, push, count, free, inv_steps, lo, hi):
+    """Move points ``lo:hi`` by their summed pushes, averaged over their colliding
+    pairs and divided by the substeps; sums the parts' pushes into part 0 first."""
+    parts = push.shape[0]
+    m = hi - lo
+    c0 = count[0, lo:]
+    for t in range(1, parts):
+        ct = count[t, lo:]
+        for p in range(m):
+            c0[p] += ct[p]
+    fr = free[lo:]
+    for c in range(3):
+        xc, p0 = P[c, lo:], push[0, c, lo:]
+        for t in range(1, parts):
+            pt = push[t, c, lo:]
+            for p in range(m):
+                p0[p] += pt[p]
+        for p in range(m):
+            xc[p] += p0[p] * fr[p] * inv_steps / max(c0[p], 1.0)
+
+
+@njit(**KERNEL_OPTIONS)
+def near_pushes(P, reach, offsets, weight, push, count, flags, c, part, parts):
     """Add the pushes of the near-stencil pairs closer than ``reach`` to ``push``
-    and ``count``; returns how many pairs that was.
+    and ``count``; returns how many pairs that was. Only part ``part`` of
+    ``parts`` of each offset's blocks is taken.
 
     As in the Provot pass, a whole offset set is first only checked, block by
     block of BLOCK pairs (no square root, no stores per pair), and only the
@@ -454,8 +560,11 @@ def near_pushes(P, reach, offsets, weight, push, count, flags, c):
         o = offsets[s]
         m = n - o
         ws = weight[s]
+        nblocks = (m + BLOCK - 1) // BLOCK
+        first = part * nblocks // parts * BLOCK
+        stop = min((part + 1) * nblocks // parts * BLOCK, m)
         blocks = 0
-        for lo in range(0, m, BLOCK):
+        for lo in range(first, stop, BLOCK):
             nb = min(BLOCK, m - lo)
             xa, ya, za = x[lo:], y[lo:], z[lo:]
             xb, yb, zb = x[lo + o:], y[lo + o:], z[lo + o:]
@@ -471,7 +580,7 @@ def near_pushes(P, reach, offsets, weight, push, count, flags, c):
             blocks += 1
         for b in range(blocks):
             if flags[b] > 0.0:
-                lo = b * BLOCK
+                lo = first + b * BLOCK
                 hits += np.int64(flags[b])
                 _push_block(P, lo, lo + o, min(BLOCK, m - lo), ws[lo:], reach, push, count, c)
     return hits

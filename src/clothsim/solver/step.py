@@ -2,14 +2,31 @@
 
 from __future__ import annotations
 
+import types
 from collections.abc import Sequence
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from .collide import collide_planes, collide_spheres
-from .grid import integrate, provot
+from .grid import CHUNK, integrate, integrate_range, provot, verlet_gather
 from .self_collide import self_collide
+
+
+PARALLEL_MIN_POINTS = 5000
+"""cloths with fewer points run on one thread unless asked: each parallel
+region costs about a microsecond to start"""
+
+
+def parts_for(num_points: int, threads: int | None = None) -> int:
+    """How many parts a cloth's substep is cut into: ``threads``, or by default
+    numba's thread count for cloths of PARALLEL_MIN_POINTS points and more."""
+    if threads is None:
+        return 1 if num_points < PARALLEL_MIN_POINTS else int(numba.get_num_threads())
+    if threads < 1:
+        raise ValueError(f"threads must be at least 1, not {threads}")
+    return int(threads)
 
 
 def pack_spheres(spheres: Sequence) -> np.ndarray:
@@ -59,10 +76,9 @@ def _from_planes(P, pos):
             pos[p, c] = P[c, p]
 
 
-@njit(cache=True, boundscheck=False)
-def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
-            start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
-            self_collision, thickness, span, P, L, F, c, over, lists, handle, handle_pos, center):
+def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
+             start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
+             self_collision, thickness, span, P, L, F, c, over, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
     Returns (largest squared distance of a point from ``center`` afterwards,
@@ -77,21 +93,41 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     it moves kinematically. The kernels work on (3, N) coordinate planes
     ``P`` (positions) and ``L`` (last positions); ``F``, ``c`` and ``over``
     are the scratch of :func:`integrate` and :func:`provot`.
+
+    The spring forces and self-collision are cut into as many parts as the
+    neighbour list has (``NeighbourList(parts=...)``). This body is compiled
+    twice: as :func:`advance`, which runs the parts one after another, and as
+    :func:`advance_parallel`, where each ``prange`` hands them to threads.
     """
     (cell_start, cell_of, order, slot, sorted_pos, candidates, reference, pairs, push, contacts, meta,
-     near_offset, near_weight, near_table, near_flags, near_scratch) = lists
+     near_offset, near_weight, near_table, near_flags, near_scratch, tally) = lists
+    parts = push.shape[0]
     _to_planes(pos, P)
     _to_planes(last, L)
     dt2 = dt * dt
+    n = P.shape[1]
+    # a part's last springs reach into the next part's first points: those are
+    # moved only once every part has its forces
+    held = (end.max() + CHUNK - 1) // CHUNK * CHUNK
     for _ in range(substeps):
-        integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest_length, F)
+        if parts == 1:
+            integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest_length, F)
+        else:
+            for t in prange(parts):
+                lo, hi = _chunk_range(n, parts, t)
+                integrate_range(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid,
+                                rest_length, F, lo, hi, lo if t == 0 else min(lo + held, hi))
+            for t in range(1, parts):
+                lo, hi = _chunk_range(n, parts, t)
+                for q in range(lo, min(lo + held, hi), CHUNK):
+                    verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, q, min(q + CHUNK, hi))
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
                                     cell_of, order, slot, sorted_pos, candidates, reference, pairs, push,
                                     contacts, meta, near_offset, near_weight, near_table,
-                                    near_flags, near_scratch)
+                                    near_flags, near_scratch, tally)
         collide_spheres(P, L, free, spheres)
         collide_planes(P, L, free, planes)
         provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over)
@@ -100,6 +136,29 @@ def advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substep
     _from_planes(P, pos)
     _from_planes(L, last)
     return _farthest(P, center), pairs
+
+
+def _renamed(f, name: str):
+    """A copy of function f under another name: numba caches compiled code by
+    the function's name, and the serial and parallel builds of one body must
+    not share a cache entry."""
+    g = types.FunctionType(f.__code__, f.__globals__, name, f.__defaults__, f.__closure__)
+    g.__qualname__ = name
+    g.__module__ = f.__module__
+    g.__doc__ = f.__doc__
+    return g
+
+
+ADVANCE_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
+advance = njit(**ADVANCE_OPTIONS)(_renamed(_advance, "advance"))
+advance_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(_renamed(_advance, "advance_parallel"))
+
+
+@njit(cache=True, inline="always")
+def _chunk_range(n, parts, t):
+    """Points ``lo:hi`` of part t of ``parts``, cut at multiples of CHUNK."""
+    size = ((n + parts - 1) // parts + CHUNK - 1) // CHUNK * CHUNK
+    return min(t * size, n), min((t + 1) * size, n)
 
 
 @njit(cache=True, inline="always")
