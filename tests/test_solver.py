@@ -3,6 +3,8 @@ against plain NumPy/Python references over the model's spring list."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -102,11 +104,13 @@ def test_verlet_formula_and_pins():
     np.testing.assert_array_equal(P[:, 1], [2.0, 2, 3])
 
 
-def run_provot(m, pos, enabled):
+def run_provot(m, pos, enabled, windows=None):
+    """The kernel's pass over each window (lo, hi, crossing) in turn; by default all springs."""
     st = build_stencil(m)
     P = planes(pos)
-    provot(P, np.asarray(enabled), st.start, st.end, st.count, st.limit, st.share, st.runs,
-           st.run_span, np.zeros((6, BLOCK)), np.zeros(m.num_points // BLOCK + 2))
+    for lo, hi, crossing in windows or [(0, m.num_points, False)]:
+        provot(P, np.asarray(enabled), st.start, st.end, st.count, st.limit, st.share, st.runs,
+               st.run_span, np.zeros((6, BLOCK)), np.zeros(m.num_points // BLOCK + 2), lo, hi, crossing)
     return P.T.copy()
 
 
@@ -124,27 +128,35 @@ def test_provot_independent_springs_end_at_110_percent():
     assert after[1, 2] + after[4, 2] == pytest.approx(pos[1, 2] + pos[4, 2])  # half each: midpoint stays
 
 
-def reference_provot(m, pos, enabled):
-    """Plain sequential Gauss-Seidel over the springs in the kernel's batch order."""
+def in_window(a, b, window):
+    """whether the spring from point a to point b > a belongs to window (lo, hi, crossing)"""
+    lo, hi, crossing = window
+    return a < lo <= b if crossing else lo <= a and b < hi
+
+
+def reference_provot(m, pos, enabled, windows=None):
+    """Plain sequential Gauss-Seidel over the springs in the kernel's batch order,
+    window by window."""
     st = build_stencil(m)
     pos = pos.copy()
     pinned = m.pinned
-    for s in range(6):
+    for window, s, half in itertools.product(windows or [(0, m.num_points, False)], range(6), range(2)):
         if not enabled[s]:
             continue
-        for half in range(2):
-            for p in np.flatnonzero(st.limit[s, half] < NO_LIMIT):
-                a, b = p + st.start[s], p + st.end[s]
-                d = pos[b] - pos[a]
-                length = np.linalg.norm(d)
-                limit = 1.1 * st.rest[s, p]
-                if length <= limit or (pinned[a] and pinned[b]):
-                    continue
-                e = (length - limit) / length
-                ca = 0.0 if pinned[a] else (e if pinned[b] else e / 2)
-                cb = 0.0 if pinned[b] else (e if pinned[a] else e / 2)
-                pos[a] += ca * d
-                pos[b] -= cb * d
+        for p in np.flatnonzero(st.limit[s, half] < NO_LIMIT):
+            a, b = p + st.start[s], p + st.end[s]
+            if not in_window(a, b, window):
+                continue
+            d = pos[b] - pos[a]
+            length = np.linalg.norm(d)
+            limit = 1.1 * st.rest[s, p]
+            if length <= limit or (pinned[a] and pinned[b]):
+                continue
+            e = (length - limit) / length
+            ca = 0.0 if pinned[a] else (e if pinned[b] else e / 2)
+            cb = 0.0 if pinned[b] else (e if pinned[a] else e / 2)
+            pos[a] += ca * d
+            pos[b] -= cb * d
     return pos
 
 
@@ -157,6 +169,29 @@ def test_provot_is_a_sequential_pass():
     for enabled in ([True] * 6, [True, True, False, False, True, True], [False] * 6):
         np.testing.assert_allclose(run_provot(m, pos, enabled), reference_provot(m, pos, enabled),
                                    rtol=0, atol=1e-11)
+
+
+def test_provot_in_parts_takes_each_spring_once():
+    """cut into parts (both ends inside each part, then the springs across each
+    cut), the pass takes every spring exactly once and equals the sequential pass
+    in that order; the parts' passes touch no point outside their part"""
+    m = grid_model(8, 9, pinned=[(0, 0), (7, 0)])
+    st = build_stencil(m)
+    n = m.num_points
+    cuts = [0, 21, 45, n]  # not on row boundaries
+    windows = [(lo, hi, False) for lo, hi in zip(cuts, cuts[1:])] + [(c, c, True) for c in cuts[1:-1]]
+    for s in range(6):
+        for p in np.flatnonzero(st.valid[s]):
+            a, b = p + st.start[s], p + st.end[s]
+            assert sum(in_window(a, b, w) for w in windows) == 1, (s, p)
+    rng = np.random.default_rng(3)
+    pos = m.rest_positions + rng.normal(scale=0.3, size=m.rest_positions.shape)
+    after = run_provot(m, pos, [True] * 6, windows)
+    np.testing.assert_allclose(after, reference_provot(m, pos, [True] * 6, windows), rtol=0, atol=1e-11)
+    part = run_provot(m, pos, [True] * 6, [(21, 45, False)])
+    outside = np.r_[0:21, 45:n]
+    np.testing.assert_array_equal(part[outside], pos[outside])
+    assert not np.allclose(part[21:45], pos[21:45])
 
 
 def test_provot_finds_sparse_stretch_on_a_large_grid():
@@ -212,7 +247,7 @@ def test_sphere_pushes_to_surface_with_friction():
     sphere = np.array([[0.0, 0, 0, 1.0, 0.25]])
     P = planes(np.array([[0.0, 0.5, 0.0], [0.0, 0.5, 0.0], [0.0, 2.0, 0.0]]))
     L = planes(np.array([[0.2, 1.2, 0.0], [0.2, 1.2, 0.0], [0.0, 2.0, 0.0]]))
-    collide_spheres(P, L, np.array([1.0, 0.0, 1.0]), sphere)
+    collide_spheres(P, L, np.array([1.0, 0.0, 1.0]), sphere, 0, 3)
     surface = np.array([0.0, 1.0, 0.0])
     np.testing.assert_allclose(P[:, 0], L[:, 0] + 0.75 * (surface - L[:, 0]))
     np.testing.assert_array_equal(P[:, 1], [0.0, 0.5, 0.0])  # pinned: stays inside
@@ -224,7 +259,7 @@ def test_plane_puts_crossing_point_back_on_its_side():
     plane = np.array([[0.0, 0, 0, 0, 1, 0, 0.0]])
     P = planes(np.array([[0.3, -0.2, 0.1], [0.0, -0.5, 0.0]]))
     L = planes(np.array([[0.3, 0.1, 0.1], [0.0, -0.4, 0.0]]))  # the second was already below: not crossing
-    collide_planes(P, L, np.ones(2), plane)
+    collide_planes(P, L, np.ones(2), plane, 0, 2)
     np.testing.assert_allclose(P[:, 0], [0.3, PLANE_OFFSET, 0.1])
     np.testing.assert_allclose(P[:, 1], [0.0, -0.5, 0.0])
 
@@ -234,7 +269,7 @@ def test_plane_friction_one_returns_to_last():
     plane = np.array([[0.0, 0, 0, 0, 1, 0, 1.0]])
     P = planes(np.array([[0.3, -0.2, 0.4]]))
     L = planes(np.array([[0.1, 0.1, 0.1]]))
-    collide_planes(P, L, np.ones(1), plane)
+    collide_planes(P, L, np.ones(1), plane, 0, 1)
     np.testing.assert_allclose(P[:, 0], L[:, 0])
 
 
@@ -287,14 +322,16 @@ def brute_force_pairs(pos, rest, reach):
     return int(np.triu((d < reach) & (r >= reach) & (d > 0), 1).sum())
 
 
-def test_self_collision_matches_brute_force_as_points_move():
+@pytest.mark.parametrize("parts", [1, 2])
+def test_self_collision_matches_brute_force_as_points_move(parts):
     """the neighbour list finds exactly the colliding pairs a fresh search finds, call after
-    call while the points drift, jump and move together, reusing its buffers"""
+    call while the points drift, jump and move together, reusing its buffers; also
+    built in parts, whose shares of the list are closed up into one"""
     rng = np.random.default_rng(7)
     n, t = 400, 0.02
     pos = rng.uniform(0, 0.3, size=(n, 3))
     rest = rng.uniform(0, 3, size=(n, 3))
-    lists = NeighbourList(n)
+    lists = NeighbourList(n, parts=parts)
     lists.pairs = np.zeros((2, 8), dtype=np.int32)  # too small: the kernel must grow it
     for step in range(40):
         expected = brute_force_pairs(pos, rest, 2 * t)
@@ -396,11 +433,14 @@ def reference_self_collision(pos, rest, free, reach, steps):
     return pos + push * free[:, None] / steps / np.maximum(count, 1)[:, None], int(hit.sum()) // 2
 
 
+@pytest.mark.parametrize("parts", [1, 3])
 @pytest.mark.parametrize("n,ratio,squeeze", [(30, 1 / 2.4, 0.9), (40, 0.75, 0.95)])
-def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze):
+def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze, parts):
     """on a cloth whose grid neighbours sit inside the list radius at rest, the near
     stencil (which checks them every substep) and the list (the rest) together push
-    exactly like a brute-force pass: a squeezed, folded, jittered cloth"""
+    exactly like a brute-force pass: a squeezed, folded, jittered cloth; also with
+    the work cut into parts, each with its share of the list, the stencil and the
+    pushes"""
     from clothsim.solver.self_collide import near_stencil
     spec = ClothSpec(width=1.0, height=1.0, num_width_points=n, num_height_points=n,
                      thickness=ratio / (n - 1), orientation=0, pinned=[[0, 0]])
@@ -415,7 +455,7 @@ def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze):
     pos += rng.normal(scale=0.15 * m.thickness, size=pos.shape)
     free = (~m.pinned).astype(float)
     expected, pairs = reference_self_collision(pos, m.rest_positions, free, 2 * m.thickness, 3)
-    lists = NeighbourList(m.num_points, n, near)
+    lists = NeighbourList(m.num_points, n, near, parts)
     P = planes(pos)
     lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 3, np.inf, *lists.buffers())
     assert hits == pairs > 100

@@ -25,6 +25,19 @@ def _add_scene_args(p: argparse.ArgumentParser, seconds: float) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--export-sequence", metavar="DIR", help="write one OBJ per frame into DIR")
     p.add_argument("--export-npz", metavar="OUT.npz", help="write the whole trajectory as NumPy arrays")
+    p.add_argument("--threads", type=_positive_int, default=None, metavar="N",
+                   help="threads that share each substep (default: one below 5,000 points, "
+                        "else all cores; NUMBA_NUM_THREADS caps them)")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, not {text!r}")
+    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def load_simulation(args: argparse.Namespace) -> Simulation:
-    sim = Simulation.from_file(args.scene, args.overrides)
+    sim = Simulation.from_file(args.scene, args.overrides, threads=args.threads)
     if args.no_self_collision:
         sim.params.self_collision = False
     return sim

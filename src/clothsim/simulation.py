@@ -92,8 +92,8 @@ class _Scratch:
         self.free = (~model.pinned).astype(np.float64)
         self.planes = np.zeros((2, 3, n))  # positions, last positions
         self.forces = force_buffer(self.stencil, n)
-        self.c = np.zeros((6, BLOCK))
-        self.over = np.zeros(n // BLOCK + 2)
+        self.c = np.zeros((parts, 6, BLOCK))
+        self.over = np.zeros((parts, n // BLOCK + 2))
         self.lists = NeighbourList(n, model.num_width_points, near_stencil(
             model.rest_positions, model.num_height_points, model.num_width_points, model.thickness),
             parts)

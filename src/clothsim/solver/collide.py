@@ -18,11 +18,12 @@ PLANE_OFFSET = 1e-4
 
 
 @njit(**KERNEL_OPTIONS)
-def collide_spheres(P, L, free, spheres):
-    """A point inside a sphere goes to the surface along the ray from the centre,
-    then back toward its last position by the friction: last + (1-f)(surface-last)."""
-    x, y, z = P[0], P[1], P[2]
-    lx, ly, lz = L[0], L[1], L[2]
+def collide_spheres(P, L, free, spheres, lo, hi):
+    """Points ``lo:hi`` inside a sphere go to the surface along the ray from the centre,
+    then back toward their last position by the friction: last + (1-f)(surface-last)."""
+    x, y, z = P[0, lo:hi], P[1, lo:hi], P[2, lo:hi]
+    lx, ly, lz = L[0, lo:], L[1, lo:], L[2, lo:]
+    free = free[lo:]
     for k in range(spheres.shape[0]):
         cx, cy, cz, r, fr = spheres[k, 0], spheres[k, 1], spheres[k, 2], spheres[k, 3], spheres[k, 4]
         r2 = r * r
@@ -43,11 +44,12 @@ def collide_spheres(P, L, free, spheres):
 
 
 @njit(**KERNEL_OPTIONS)
-def collide_planes(P, L, free, planes):
-    """A point that crossed a plane since the last substep is put back on its old
-    side, PLANE_OFFSET off the plane, then moved toward its last position by friction."""
-    x, y, z = P[0], P[1], P[2]
-    lx, ly, lz = L[0], L[1], L[2]
+def collide_planes(P, L, free, planes, lo, hi):
+    """Points ``lo:hi`` that crossed a plane since the last substep are put back on their
+    old side, PLANE_OFFSET off the plane, then moved toward their last position by friction."""
+    x, y, z = P[0, lo:hi], P[1, lo:hi], P[2, lo:hi]
+    lx, ly, lz = L[0, lo:], L[1, lo:], L[2, lo:]
+    free = free[lo:]
     for k in range(planes.shape[0]):
         px, py, pz = planes[k, 0], planes[k, 1], planes[k, 2]
         nx, ny, nz = planes[k, 3], planes[k, 4], planes[k, 5]

@@ -238,8 +238,13 @@ def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over):
+def provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over, lo, hi, crossing):
     """Shorten every enabled spring longer than its limit (1.1x rest) back to it.
+
+    Only the springs with both ends in points ``lo:hi`` are taken, or with
+    ``crossing`` those with one end before ``lo`` and one from ``lo`` on. A
+    thread then owns its part of the cloth; the springs across a cut
+    between two parts are shortened afterwards. ``0, N, False`` takes all.
 
     One Gauss-Seidel pass, in an order where each batch holds springs that
     share no point (every other row of a vertical set, every other spring of
@@ -260,16 +265,18 @@ def provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over)
         if not enabled[s]:
             continue
         oa, ob = start[s], end[s]
+        # springs p of this set with both ends inside, or across the cut at lo
+        plo, phi = (lo - ob, lo - oa) if crossing else (lo - oa, hi - ob)
         for half in range(2):
             lim_h = limit[s, half]
             for r in range(run_span[s, half, 0], run_span[s, half, 1]):
-                first, stop = runs[r, 0], runs[r, 1]
+                first, stop = max(runs[r, 0], plo), min(runs[r, 1], phi)
                 blocks = 0
-                for lo in range(first, stop, BLOCK):
-                    n = min(BLOCK, stop - lo)
-                    xa, ya, za = x[oa + lo:], y[oa + lo:], z[oa + lo:]
-                    xb, yb, zb = x[ob + lo:], y[ob + lo:], z[ob + lo:]
-                    lim = lim_h[lo:]
+                for q in range(first, stop, BLOCK):
+                    n = min(BLOCK, stop - q)
+                    xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
+                    xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
+                    lim = lim_h[q:]
                     hits = 0.0  # a sum of selects vectorises; a running max does not
                     for p in range(n):
                         dx = xb[p] - xa[p]
@@ -280,9 +287,9 @@ def provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over)
                     blocks += 1
                 for b in range(blocks):
                     if over[b] > 0.0:
-                        lo = first + b * BLOCK
-                        _correct_block(P, oa + lo, ob + lo, min(BLOCK, stop - lo), lim_h[lo:],
-                                       share[s, 0, lo:], share[s, 1, lo:], c)
+                        q = first + b * BLOCK
+                        _correct_block(P, oa + q, ob + q, min(BLOCK, stop - q), lim_h[q:],
+                                       share[s, 0, q:], share[s, 1, q:], c)
 
 
 @njit(**KERNEL_OPTIONS)

@@ -91,11 +91,13 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     self-collision, sphere and plane collisions, then the Provot pass.
     ``handle`` (or -1) is a point held at ``handle_pos`` by the user's grab:
     it moves kinematically. The kernels work on (3, N) coordinate planes
-    ``P`` (positions) and ``L`` (last positions); ``F``, ``c`` and ``over``
-    are the scratch of :func:`integrate` and :func:`provot`.
+    ``P`` (positions) and ``L`` (last positions); ``F`` is the scratch of
+    :func:`integrate`, ``c[t]`` and ``over[t]`` that of :func:`provot` in part t.
 
-    The spring forces and self-collision are cut into as many parts as the
-    neighbour list has (``NeighbourList(parts=...)``). This body is compiled
+    The substep is cut into as many parts as the neighbour list has
+    (``NeighbourList(parts=...)``): ranges of points, each moved, collided and
+    constrained by one part; the Provot pass then takes the springs across
+    the cuts. This body is compiled
     twice: as :func:`advance`, which runs the parts one after another, and as
     :func:`advance_parallel`, where each ``prange`` hands them to threads.
     """
@@ -128,9 +130,22 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
                                     cell_of, order, slot, sorted_pos, candidates, reference, pairs, push,
                                     contacts, meta, near_offset, near_weight, near_table,
                                     near_flags, near_scratch, tally)
-        collide_spheres(P, L, free, spheres)
-        collide_planes(P, L, free, planes)
-        provot(P, enabled, start, end, count, limit, share, runs, run_span, c, over)
+        if parts == 1:
+            collide_spheres(P, L, free, spheres, 0, n)
+            collide_planes(P, L, free, planes, 0, n)
+            provot(P, enabled, start, end, count, limit, share, runs, run_span, c[0], over[0], 0, n,
+                   False)
+        else:
+            for t in prange(parts):
+                lo, hi = _chunk_range(n, parts, t)
+                collide_spheres(P, L, free, spheres, lo, hi)
+                collide_planes(P, L, free, planes, lo, hi)
+                provot(P, enabled, start, end, count, limit, share, runs, run_span, c[t], over[t],
+                       lo, hi, False)
+            for t in range(1, parts):
+                lo, _ = _chunk_range(n, parts, t)
+                provot(P, enabled, start, end, count, limit, share, runs, run_span, c[0], over[0],
+                       lo, lo, True)
         if handle >= 0:
             _hold(P, handle, handle_pos)
     _from_planes(P, pos)
