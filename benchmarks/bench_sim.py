@@ -2,13 +2,18 @@
 
 Prints one JSON object per measurement. The figures are single-threaded;
 ``substeps_per_s_threads`` is the same run with the substep cut over numba's
-thread count (``NUMBA_NUM_THREADS``, by default the machine's cores). The cost of the springs (forces and the Provot pass) and of
-self-collision per substep come from differences of runs with each switched
-off, measured back to back. Each measurement is the median of ``--repeats`` runs of the same
+thread count (``NUMBA_NUM_THREADS``, by default the machine's cores). The
+cost of the springs (forces and the Provot pass) and of self-collision per
+substep come from differences of runs with each switched off, measured back
+to back. Each measurement is the median of ``--repeats`` runs of the same
 stretch of simulated time from the scene's start, after a warm-up that
 compiles the kernels.
 
-    python benchmarks/bench_sim.py [--sizes 50,100,200] [--scenes pinned2,sphere] [--repeats 3]
+Last, ``"bench": "settle"`` lines time the whole two-second fall and settle of
+``selfCollision`` at 100x100 on one thread and on all: the short stretches
+above end before the cloth piles up, which is when self-collision costs most.
+
+    python benchmarks/bench_sim.py [--sizes 50,100,200] [--scenes pinned2,sphere] [--repeats 3] [--no-settle]
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from clothsim import Simulation  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ["pinned2", "pinned4", "sphere", "plane", "selfCollision"]
 SECONDS = {50: 1.0, 100: 0.4, 200: 0.1}
+SETTLE_SECONDS = 2.0
 
 
 def sized(scene: str, n: int) -> list[str]:
@@ -65,6 +71,8 @@ def main() -> None:
     ap.add_argument("--sizes", default="50,100,200")
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-settle", action="store_true",
+                    help="leave out the 2-second fall and settle of selfCollision 100x100")
     args = ap.parse_args()
     info = machine()
     threads = numba.get_num_threads()
@@ -89,6 +97,15 @@ def main() -> None:
                   "realtime_factor": round(with_self / 2700.0, 3),
                   "realtime_factor_threads": round(split / 2700.0, 3),
                   "peak_rss_mib": round(peak_rss_mib(), 1), **info})
+    if "selfCollision" in args.scenes.split(",") and not args.no_settle:
+        # the whole fall and settle of a 100x100 cloth: the piled-up frames cost most
+        for t in sorted({1, threads}):
+            rate, rebuilds = measure("selfCollision", 100, SETTLE_SECONDS, True, args.repeats, threads=t)
+            emit({"bench": "settle", "scene": "selfCollision", "grid": "100x100",
+                  "simulated_s": SETTLE_SECONDS, "threads": t, "substeps_per_s": round(rate, 1),
+                  "list_rebuilds_per_100_substeps": round(rebuilds, 1),
+                  "realtime_factor": round(rate / 2700.0, 3), "peak_rss_mib": round(peak_rss_mib(), 1),
+                  **info})
 
 
 if __name__ == "__main__":
