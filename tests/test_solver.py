@@ -360,7 +360,7 @@ def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
     x.pairs = np.zeros((2, n * n // 2), dtype=np.int32)
     b = x.buffers()
     found = build_list(planes(pos), rest, reach, radius, np.inf, *b[:5], x.pairs, x.meta[3],
-                       x.near_table, x.candidates)
+                       x.near_table, x.near_metric, x.candidates)
     d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
     r = np.linalg.norm(rest[:, None] - rest[None], axis=2)
     expected = {(a, b) for a, b in zip(*np.nonzero(np.triu((d < radius) & (r >= reach), 1)))}
@@ -433,6 +433,40 @@ def reference_self_collision(pos, rest, free, reach, steps):
     return pos + push * free[:, None] / steps / np.maximum(count, 1)[:, None], int(hit.sum()) // 2
 
 
+def folded_cloth(n, ratio, squeeze):
+    """(model, near stencil, positions) of an n x n cloth with thickness ratio/(n-1),
+    squeezed, its far half folded back over the near half, jittered"""
+    from clothsim.solver.self_collide import near_stencil
+    spec = ClothSpec(width=1.0, height=1.0, num_width_points=n, num_height_points=n,
+                     thickness=ratio / (n - 1), orientation=0, pinned=[[0, 0]])
+    m = build_model(spec)
+    near = near_stencil(m.rest_positions, n, n, m.thickness)
+    rng = np.random.default_rng(n)
+    pos = m.rest_positions * [squeeze, 1, squeeze]
+    half = m.rest_positions[:, 2] > 0.5
+    pos[half, 2] = 1.0 * squeeze - pos[half, 2]
+    pos[half, 1] += 0.6 * m.thickness
+    pos += rng.normal(scale=0.15 * m.thickness, size=pos.shape)
+    return m, near, pos
+
+
+@pytest.mark.parametrize("n,ratio", [(30, 1 / 2.4), (40, 0.75), (60, 1.2)])
+def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio):
+    """the build's early drop of grid neighbours by row and column leaves the list
+    exactly as the exact tests alone make it"""
+    m, near, pos = folded_cloth(n, ratio, 0.9)
+    reach = 2 * m.thickness
+    lists = []
+    for metric in (near[3], np.zeros(3)):
+        x = NeighbourList(m.num_points, n, (*near[:3], metric))
+        x.pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
+        found = build_list(planes(pos), m.rest_positions, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
+                           x.pairs, n, x.near_table, x.near_metric, x.candidates)
+        assert 0 < found <= x.pairs.shape[1]
+        lists.append(x.pairs[:, :found].copy())
+    np.testing.assert_array_equal(lists[0], lists[1])
+
+
 @pytest.mark.parametrize("parts", [1, 3])
 @pytest.mark.parametrize("n,ratio,squeeze", [(30, 1 / 2.4, 0.9), (40, 0.75, 0.95)])
 def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze, parts):
@@ -441,18 +475,9 @@ def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze, p
     exactly like a brute-force pass: a squeezed, folded, jittered cloth; also with
     the work cut into parts, each with its share of the list, the stencil and the
     pushes"""
-    from clothsim.solver.self_collide import near_stencil
-    spec = ClothSpec(width=1.0, height=1.0, num_width_points=n, num_height_points=n,
-                     thickness=ratio / (n - 1), orientation=0, pinned=[[0, 0]])
-    m = build_model(spec)
-    near = near_stencil(m.rest_positions, n, n, m.thickness)
+    m, near, pos = folded_cloth(n, ratio, squeeze)
     assert len(near[0]) > 0
-    rng = np.random.default_rng(n)
-    pos = m.rest_positions * [squeeze, 1, squeeze]
-    half = m.rest_positions[:, 2] > 0.5  # fold the far half back over the near half
-    pos[half, 2] = 1.0 * squeeze - pos[half, 2]
-    pos[half, 1] += 0.6 * m.thickness
-    pos += rng.normal(scale=0.15 * m.thickness, size=pos.shape)
+    assert near[3][2] > 1.5 * near[3][1]  # the build drops the diagonal neighbours early
     free = (~m.pinned).astype(float)
     expected, pairs = reference_self_collision(pos, m.rest_positions, free, 2 * m.thickness, 3)
     lists = NeighbourList(m.num_points, n, near, parts)
