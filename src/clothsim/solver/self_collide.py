@@ -56,6 +56,9 @@ CELLS_PER_POINT = 8
 NEAR = 5
 """grid offsets up to this many rows and columns may be checked as a stencil"""
 
+QUERY_SHARES = 4
+"""shares of the list build per thread, where there is more than one"""
+
 SHORT_RANGE = 16
 """candidate ranges shorter than this are tested in a plain loop: the vector
 loop's setup costs more than it saves on them"""
@@ -167,7 +170,8 @@ class NeighbourList:
         self.near_offset, self.near_weight, self.near_table, self.near_metric = near
         self.near_flags = np.zeros((parts, n // BLOCK + 2))
         self.near_scratch = np.zeros((parts, 4, BLOCK))
-        self.tally = np.zeros((parts, 2), dtype=np.int64)  # pairs found and pairs pushed per part
+        # pairs found per share of the list build, pairs pushed per part
+        self.tally = np.zeros((parts * (QUERY_SHARES if parts > 1 else 1), 2), dtype=np.int64)
 
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
@@ -470,24 +474,29 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
         if grid[3] == 0.0:
             meta[VALID] = 0
             return pairs, 0
-        share = pairs.shape[1] // parts
+        # the points are cut into more shares than parts, dealt out in turn: the
+        # cost of a share depends on how crowded its part of the cloth is
+        shares = tally.shape[0]
+        size = pairs.shape[1] // shares
         for t in prange(parts):
-            lo, hi = part_range(n, parts, t)
-            tally[t, 0] = query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
-                                       near_table, near_metric, candidates[t], lo, hi, pairs,
-                                       t * share, share)
+            for j in range(t, shares, parts):
+                lo, hi = part_range(n, shares, j)
+                tally[j, 0] = query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
+                                           near_table, near_metric, candidates[t], lo, hi, pairs,
+                                           j * size, size)
         most = 0
-        for t in range(parts):
-            most = max(most, tally[t, 0])
-        if most > share:
-            share = 2 * most
-            pairs = np.empty((2, parts * share), dtype=np.int32)
+        for j in range(shares):
+            most = max(most, tally[j, 0])
+        if most > size:
+            size = 2 * most
+            pairs = np.empty((2, shares * size), dtype=np.int32)
             for t in prange(parts):
-                lo, hi = part_range(n, parts, t)
-                query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
-                             near_table, near_metric, candidates[t], lo, hi, pairs, t * share,
-                             share)
-        meta[PAIRS] = _close_up(pairs, tally, share)
+                for j in range(t, shares, parts):
+                    lo, hi = part_range(n, shares, j)
+                    query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
+                                 near_table, near_metric, candidates[t], lo, hi, pairs, j * size,
+                                 size)
+        meta[PAIRS] = _close_up(pairs, tally, size)
         _copy(P, reference)
         meta[VALID] = 1
         meta[REBUILDS] += 1
@@ -512,11 +521,11 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
 
 
 @njit(**EXACT_OPTIONS)
-def _close_up(pairs, tally, share):
-    """Move each part's pairs (part t's from ``t * share``) into one run; returns their number."""
+def _close_up(pairs, tally, size):
+    """Move each share's pairs (share j's from ``j * size``) into one run; returns their number."""
     total = tally[0, 0]
     for t in range(1, tally.shape[0]):
-        base = t * share
+        base = t * size
         for j in range(tally[t, 0]):
             pairs[0, total + j] = pairs[0, base + j]
             pairs[1, total + j] = pairs[1, base + j]
