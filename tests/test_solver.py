@@ -450,21 +450,41 @@ def folded_cloth(n, ratio, squeeze):
     return m, near, pos
 
 
+@pytest.mark.parametrize("warp", [False, True])
 @pytest.mark.parametrize("n,ratio", [(30, 1 / 2.4), (40, 0.75), (60, 1.2)])
-def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio):
+def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
     """the build's early drop of grid neighbours by row and column leaves the list
-    exactly as the exact tests alone make it"""
+    exactly as the exact tests alone make it; on a regular grid it also skips
+    those tests, and on a rest layout with squeezed columns (pairs two columns
+    apart closer than the reach at rest) it must not"""
+    from clothsim.solver.self_collide import grid_metric, near_stencil
     m, near, pos = folded_cloth(n, ratio, 0.9)
+    rest = m.rest_positions.copy()
     reach = 2 * m.thickness
+    if warp:
+        col = np.arange(m.num_points) % n
+        squeezed = (col >= 10) & (col <= 20)  # pairs 6 columns apart: 0.9 reach at rest
+        rest[squeezed, 0] = rest[col == 10, 0].repeat(11) + (col[squeezed] - 10) * 0.15 * reach
+        near = near_stencil(rest, n, n, m.thickness)
+    assert near[3][3] == (0.0 if warp else 1.0)
     lists = []
-    for metric in (near[3], np.zeros(3)):
+    for metric in (near[3], np.zeros(4)):
         x = NeighbourList(m.num_points, n, (*near[:3], metric))
         x.pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
-        found = build_list(planes(pos), m.rest_positions, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
+        found = build_list(planes(pos), rest, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
                            x.pairs, n, x.near_table, x.near_metric, x.candidates)
         assert 0 < found <= x.pairs.shape[1]
         lists.append(x.pairs[:, :found].copy())
     np.testing.assert_array_equal(lists[0], lists[1])
+    if warp:  # at rest, the same metric marked exact would have let rest-close pairs in
+        counts = []
+        for metric in (near[3], near[3] + [0, 0, 0, 1]):
+            x = NeighbourList(m.num_points, n, (*near[:3], metric))
+            x.pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
+            counts.append(build_list(planes(rest), rest, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
+                                     x.pairs, n, x.near_table, x.near_metric, x.candidates))
+        assert counts[1] > counts[0]
+    assert grid_metric(rest, n, n, np.zeros((6, 11), bool))[3] == 0.0
 
 
 @pytest.mark.parametrize("parts", [1, 3])
