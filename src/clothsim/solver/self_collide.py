@@ -218,10 +218,11 @@ class NeighbourList:
 def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos):
     """Counting-sort the points into a dense grid of cells over their bounding box.
 
-    Cells are ``CELL_FACTOR * radius`` wide where the buffer allows, coarser where the cloth
-    is spread wider, and X_SPLIT times narrower along x. Cell (ix, iy, iz) is number ``(iz*ny + iy)*nx + ix``, so
-    cells next to each other along x are next to each other in the sorted
-    order and a query reads a row of three cells as one range. Afterwards
+    Cells are ``CELL_FACTOR * radius`` wide where the buffer allows, coarser where the
+    cloth is spread wider, and X_SPLIT times narrower along x. Cell (ix, iy, iz) is
+    number ``(iz*ny + iy)*nx + ix``, so cells next to each other along x are next
+    to each other in the sorted order and a query reads a row of them as one
+    range. Afterwards
     cell c holds slots ``cell_start[c] : cell_start[c+1]``, ``order[k]`` is
     the point in slot k, ``slot`` the inverse, and the point's position,
     rest position and row and column on a grid of ``cols`` columns are
@@ -369,23 +370,13 @@ def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_
                 ulo = np.uint64(lo)
                 if hi - lo < SHORT_RANGE:
                     for q in range(ulo, np.uint64(hi)):
-                        dx = x - sx[q]
-                        dy = y - sy[q]
-                        dz = z - sz[q]
-                        er = grid_row[q] - gr
-                        ec = grid_col[q] - gc
                         near[inside] = q
-                        inside += 1 if ((dx * dx + dy * dy + dz * dz < radius2)
-                                        & (er * er * wr2 + ec * ec * wc2 >= rho2)) else 0
+                        inside += _candidate(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, q,
+                                             radius2, wr2, wc2, rho2)
                     continue
                 for q in range(ulo, np.uint64(hi)):
-                    dx = x - sx[q]
-                    dy = y - sy[q]
-                    dz = z - sz[q]
-                    er = grid_row[q] - gr
-                    ec = grid_col[q] - gc
-                    hit[q - ulo] = 1 if ((dx * dx + dy * dy + dz * dz < radius2)
-                                         & (er * er * wr2 + ec * ec * wc2 >= rho2)) else 0
+                    hit[q - ulo] = _candidate(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, q,
+                                              radius2, wr2, wc2, rho2)
                 for j in range(hi - lo):
                     near[inside] = lo + j
                     inside += hit[j]
@@ -415,6 +406,18 @@ def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_
                 pairs[1, base + found] = pq
             found += 1
     return found
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _candidate(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, q, radius2, wr2, wc2, rho2):
+    """1 if slot q lies inside the radius of the point at (x, y, z), grid row gr and
+    column gc, and is not a grid neighbour inside the ellipse of :func:`grid_metric`"""
+    dx = x - sx[q]
+    dy = y - sy[q]
+    dz = z - sz[q]
+    er = grid_row[q] - gr
+    ec = grid_col[q] - gc
+    return 1 if (dx * dx + dy * dy + dz * dz < radius2) & (er * er * wr2 + ec * ec * wc2 >= rho2) else 0
 
 
 @njit(cache=True, inline="always")
