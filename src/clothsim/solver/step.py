@@ -97,9 +97,9 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     The substep is cut into as many parts as the neighbour list has
     (``NeighbourList(parts=...)``): ranges of points, each moved, collided and
     constrained by one part; the Provot pass then takes the springs across
-    the cuts. This body is compiled
-    twice: as :func:`advance`, which runs the parts one after another, and as
-    :func:`advance_parallel`, where each ``prange`` hands them to threads.
+    the cuts. This body is compiled twice: as :func:`advance`, which runs the
+    parts one after another, and as :func:`advance_parallel`, where each
+    ``prange`` hands them to threads.
     """
     (cell_start, cell_of, order, slot, sorted_pos, candidates, reference, pairs, push, contacts, meta,
      near_offset, near_weight, near_table, near_metric, near_flags, near_scratch, tally) = lists
