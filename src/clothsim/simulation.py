@@ -106,11 +106,11 @@ class Simulation:
     ``params``, ``spheres`` and ``planes`` (friction, position) may be edited
     between frames; nothing is rebuilt for it.
 
-    ``threads``: how many threads share a substep's spring forces and
-    self-collision (None: one for cloths under PARALLEL_MIN_POINTS points,
-    else numba's thread count, which ``NUMBA_NUM_THREADS`` sets). The result
-    depends on this count (the order of the self-collision sums), not on
-    the machine.
+    ``threads``: how many threads share each substep, fixed when the
+    simulation is made (None: one for cloths under PARALLEL_MIN_POINTS
+    points, else numba's thread count, which ``NUMBA_NUM_THREADS`` sets). The
+    result depends on this count (the order of the Provot corrections and of
+    the self-collision sums), not on the machine.
     """
 
     scene: Scene
