@@ -484,7 +484,7 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
             counts.append(build_list(planes(rest), rest, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
                                      x.pairs, n, x.near_table, x.near_metric, x.candidates))
         assert counts[1] > counts[0]
-    assert grid_metric(rest, n, n, np.zeros((6, 11), bool))[3] == 0.0
+    assert grid_metric(rest, n, n, np.zeros((6, 11), bool), reach)[3] == 0.0
 
 
 @pytest.mark.parametrize("parts", [1, 3])

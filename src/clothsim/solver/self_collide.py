@@ -7,8 +7,8 @@ for every pair within ``reach + skin`` (a neighbour list, as in molecular
 dynamics), and each substep only tests the listed pairs. The list is rebuilt
 as soon as any point may have come within ``reach`` of a point not listed:
 when the displacements since the build may differ by ``skin`` between two
-points (bounded by the box around all displacements, or by twice the
-largest deviation from their mean). Two unlisted points started at least
+points (not while every displacement lies within ``skin/2`` of one centre,
+see :func:`_drifted`). Two unlisted points started at least
 ``reach + skin`` apart and their displacements differ by less than
 ``skin``, so they are still farther apart than ``reach``; the pairs found
 are exactly those a hash rebuilt every substep would find.
@@ -113,7 +113,7 @@ def near_stencil(rest: np.ndarray, rows: int, cols: int,
 
 
 def grid_metric(rest: np.ndarray, rows: int, cols: int, never: np.ndarray,
-                reach: float = 0.0) -> np.ndarray:
+                reach: float) -> np.ndarray:
     """(row spacing², column spacing², rho², exact) such that every grid offset
     (dr, di) with ``(dr*row spacing)² + (di*column spacing)² < rho²`` is marked
     in ``never`` (NEAR+1, 2*NEAR+1): its pairs never enter the list.
@@ -222,11 +222,10 @@ def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, sl
     cloth is spread wider, and X_SPLIT times narrower along x. Cell (ix, iy, iz) is
     number ``(iz*ny + iy)*nx + ix``, so cells next to each other along x are next
     to each other in the sorted order and a query reads a row of them as one
-    range. Afterwards
-    cell c holds slots ``cell_start[c] : cell_start[c+1]``, ``order[k]`` is
-    the point in slot k, ``slot`` the inverse, and the point's position,
-    rest position and row and column on a grid of ``cols`` columns are
-    copied to column k of ``sorted_pos`` (8, N).
+    range. Afterwards cell c holds slots ``cell_start[c] : cell_start[c+1]``,
+    ``order[k]`` is the point in slot k, ``slot`` the inverse, and the point's
+    position, rest position and row and column on a grid of ``cols`` columns
+    are copied to column k of ``sorted_pos`` (8, N).
 
     Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
     the points are not finite or spread wider than ``span``: no list then.
@@ -518,24 +517,20 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
         # cost of a share depends on how crowded its part of the cloth is
         shares = tally.shape[0]
         size = pairs.shape[1] // shares
-        for t in prange(parts):
-            for j in range(t, shares, parts):
-                lo, hi = part_range(n, shares, j)
-                tally[j, 0] = query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
-                                           near_table, near_metric, candidates[t], lo, hi, pairs,
-                                           j * size, size)
-        most = 0
-        for j in range(shares):
-            most = max(most, tally[j, 0])
-        if most > size:
-            size = 2 * most
-            pairs = np.empty((2, shares * size), dtype=np.int32)
+        while True:  # once more with room for twice the largest share when one overflowed
             for t in prange(parts):
                 for j in range(t, shares, parts):
                     lo, hi = part_range(n, shares, j)
-                    query_points(grid, reach, radius, cell_start, slot, order, sorted_pos,
-                                 near_table, near_metric, candidates[t], lo, hi, pairs, j * size,
-                                 size)
+                    tally[j, 0] = query_points(grid, reach, radius, cell_start, slot, order,
+                                               sorted_pos, near_table, near_metric, candidates[t],
+                                               lo, hi, pairs, j * size, size)
+            most = 0
+            for j in range(shares):
+                most = max(most, tally[j, 0])
+            if most <= size:
+                break
+            size = 2 * most
+            pairs = np.empty((2, shares * size), dtype=np.int32)
         meta[PAIRS] = _close_up(pairs, tally, size)
         _copy(P, reference)
         meta[VALID] = 1
