@@ -110,7 +110,7 @@ def run_provot(m, pos, enabled, windows=None):
     P = planes(pos)
     for lo, hi, crossing in windows or [(0, m.num_points, False)]:
         provot(P, np.asarray(enabled), st.start, st.end, st.count, st.limit, st.share, st.runs,
-               st.run_span, np.zeros((6, BLOCK)), np.zeros(m.num_points // BLOCK + 2), lo, hi, crossing)
+               st.run_span, np.zeros(m.num_points // BLOCK + 2, np.uint64), lo, hi, crossing)
     return P.T.copy()
 
 

@@ -92,8 +92,7 @@ class _Scratch:
         self.free = (~model.pinned).astype(np.float64)
         self.planes = np.zeros((2, 3, n))  # positions, last positions
         self.forces = force_buffer(self.stencil, n)
-        self.c = np.zeros((parts, 6, BLOCK))
-        self.over = np.zeros((parts, n // BLOCK + 2))
+        self.masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)  # Provot scratch
         self.lists = NeighbourList(n, model.num_width_points, near_stencil(
             model.rest_positions, model.num_height_points, model.num_width_points, model.thickness),
             parts)
@@ -215,7 +214,7 @@ class Simulation:
             st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share, st.runs, st.run_span,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
             bool(p.self_collision), m.thickness, self._span, s.planes[0], s.planes[1], s.forces,
-            s.c, s.over, s.lists.buffers(), self._handle, self._handle_pos, self._center)
+            s.masks, s.lists.buffers(), self._handle, self._handle_pos, self._center)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None

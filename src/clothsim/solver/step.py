@@ -78,7 +78,7 @@ def _from_planes(P, pos):
 
 def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
              start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
-             self_collision, thickness, span, P, L, F, c, over, lists, handle, handle_pos, center):
+             self_collision, thickness, span, P, L, F, masks, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
     Returns (largest squared distance of a point from ``center`` afterwards,
@@ -92,7 +92,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     ``handle`` (or -1) is a point held at ``handle_pos`` by the user's grab:
     it moves kinematically. The kernels work on (3, N) coordinate planes
     ``P`` (positions) and ``L`` (last positions); ``F`` is the scratch of
-    :func:`integrate`, ``c[t]`` and ``over[t]`` that of :func:`provot` in part t.
+    :func:`integrate`, ``masks[t]`` that of :func:`provot` in part t.
 
     The substep is cut into as many parts as the neighbour list has
     (``NeighbourList(parts=...)``): ranges of points, each moved, collided and
@@ -133,18 +133,18 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
         if parts == 1:
             collide_spheres(P, L, free, spheres, 0, n)
             collide_planes(P, L, free, planes, 0, n)
-            provot(P, enabled, start, end, count, limit, share, runs, run_span, c[0], over[0], 0, n,
+            provot(P, enabled, start, end, count, limit, share, runs, run_span, masks[0], 0, n,
                    False)
         else:
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
                 collide_spheres(P, L, free, spheres, lo, hi)
                 collide_planes(P, L, free, planes, lo, hi)
-                provot(P, enabled, start, end, count, limit, share, runs, run_span, c[t], over[t],
+                provot(P, enabled, start, end, count, limit, share, runs, run_span, masks[t],
                        lo, hi, False)
             for t in range(1, parts):
                 lo, _ = _chunk_range(n, parts, t)
-                provot(P, enabled, start, end, count, limit, share, runs, run_span, c[0], over[0],
+                provot(P, enabled, start, end, count, limit, share, runs, run_span, masks[0],
                        lo, lo, True)
         if handle >= 0:
             _hold(P, handle, handle_pos)
