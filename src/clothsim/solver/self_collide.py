@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 from .grid import BLOCK, KERNEL_OPTIONS
 
@@ -197,8 +198,7 @@ class NeighbourList:
             near = (np.zeros(0, np.int64), np.zeros((0, n), np.uint8),
                     np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64), np.zeros(4))
         self.near_offset, self.near_weight, self.near_table, self.near_metric = near
-        self.near_flags = np.zeros((parts, n // BLOCK + 2))
-        self.near_scratch = np.zeros((parts, 4, BLOCK))
+        self.near_masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)
         # pairs found per share of the list build, pairs pushed per part
         self.tally = np.zeros((parts * (QUERY_SHARES if parts > 1 else 1), 2), dtype=np.int64)
 
@@ -207,7 +207,7 @@ class NeighbourList:
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
                 self.candidates, self.reference, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
-                self.near_flags, self.near_scratch, self.tally)
+                self.near_masks, self.tally)
 
     @property
     def rebuilds(self) -> int:
@@ -486,7 +486,7 @@ def _drifted(P, reference, skin):
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
                  sorted_pos, candidates, reference, pairs, push, count, meta, near_offset, near_weight,
-                 near_table, near_metric, near_flags, near_scratch, tally):
+                 near_table, near_metric, near_masks, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -540,8 +540,8 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     listed = meta[PAIRS]
     for t in prange(parts):
         _clear(push[t], count[t])
-        h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], near_flags[t],
-                        near_scratch[t], t, parts)
+        h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], near_masks[t], t,
+                        parts)
         k0, k1 = part_range(listed, parts, t)
         tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, k1, push[t], count[t])
     hits = 0
@@ -641,18 +641,19 @@ def apply_pushes(P, push, count, free, inv_steps, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def near_pushes(P, reach, offsets, weight, push, count, flags, c, part, parts):
+def near_pushes(P, reach, offsets, weight, push, count, masks, part, parts):
     """Add the pushes of the near-stencil pairs closer than ``reach`` to ``push``
     and ``count``; returns how many pairs that was. Only part ``part`` of
     ``parts`` of each offset's blocks is taken.
 
     As in the Provot pass, a whole offset set is first only checked, block by
-    block of BLOCK pairs (no square root, no stores per pair), and only the
-    blocks with a pair inside the reach are then pushed.
+    block of BLOCK pairs (no square root, no stores per pair), setting a bit
+    in ``masks`` per pair inside the reach; then only those pairs are pushed.
     """
     n = P.shape[1]
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
+    px, py, pz = push[0], push[1], push[2]
     hits = 0
     for s in range(offsets.shape[0]):
         o = offsets[s]
@@ -667,49 +668,33 @@ def near_pushes(P, reach, offsets, weight, push, count, flags, c, part, parts):
             xa, ya, za = x[lo:], y[lo:], z[lo:]
             xb, yb, zb = x[lo + o:], y[lo + o:], z[lo + o:]
             w = ws[lo:]
-            close = 0.0  # a sum of selects vectorises
+            mask = np.uint64(0)  # an or of shifted selects vectorises
             for p in range(nb):
                 dx = xa[p] - xb[p]
                 dy = ya[p] - yb[p]
                 dz = za[p] - zb[p]
                 d2 = dx * dx + dy * dy + dz * dz
-                close += 1.0 if (w[p] != 0) & (d2 < reach2) & (d2 > 0.0) else 0.0
-            flags[blocks] = close
+                close = (w[p] != 0) & (d2 < reach2) & (d2 > 0.0)
+                mask |= np.uint64(1 if close else 0) << np.uint64(p)
+            masks[blocks] = mask
             blocks += 1
         for b in range(blocks):
-            if flags[b] > 0.0:
-                lo = first + b * BLOCK
-                hits += np.int64(flags[b])
-                _push_block(P, lo, lo + o, min(BLOCK, m - lo), ws[lo:], reach, push, count, c)
+            mask = masks[b]
+            while mask != 0:
+                a = first + b * BLOCK + np.int64(trailing_zeros(mask))
+                mask &= mask - np.uint64(1)
+                dx = x[a] - x[a + o]
+                dy = y[a] - y[a + o]
+                dz = z[a] - z[a + o]
+                d = np.sqrt(dx * dx + dy * dy + dz * dz)
+                f = (reach - d) / d
+                px[a] += dx * f
+                py[a] += dy * f
+                pz[a] += dz * f
+                px[a + o] -= dx * f
+                py[a + o] -= dy * f
+                pz[a + o] -= dz * f
+                count[a] += 1.0
+                count[a + o] += 1.0
+                hits += 1
     return hits
-
-
-@njit(**KERNEL_OPTIONS)
-def _push_block(P, a0, b0, nb, w, reach, push, count, c):
-    """Pushes of pairs ``a0 + p``, ``b0 + p`` (p < nb) into push and count; c is (4, BLOCK)."""
-    reach2 = reach * reach
-    xa, ya, za = P[0, a0:], P[1, a0:], P[2, a0:]
-    xb, yb, zb = P[0, b0:], P[1, b0:], P[2, b0:]
-    for p in range(nb):
-        dx = xa[p] - xb[p]
-        dy = ya[p] - yb[p]
-        dz = za[p] - zb[p]
-        d2 = dx * dx + dy * dy + dz * dz
-        hit = (w[p] != 0) & (d2 < reach2) & (d2 > 0.0)
-        d = np.sqrt(d2 if hit else 1.0)
-        s = (reach - d) / d if hit else 0.0
-        c[0, p] = dx * s
-        c[1, p] = dy * s
-        c[2, p] = dz * s
-        c[3, p] = 1.0 if hit else 0.0
-    for k in range(3):
-        pa, pb, ck = push[k, a0:], push[k, b0:], c[k]
-        for p in range(nb):
-            pa[p] += ck[p]
-        for p in range(nb):
-            pb[p] -= ck[p]
-    ca, cb, hit = count[a0:], count[b0:], c[3]
-    for p in range(nb):
-        ca[p] += hit[p]
-    for p in range(nb):
-        cb[p] += hit[p]
