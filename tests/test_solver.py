@@ -13,7 +13,7 @@ from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                   integrate, provot)
-from clothsim.solver.self_collide import SHORT_RANGE, NeighbourList, _drifted, build_list, self_collide
+from clothsim.solver.self_collide import NARROW, WIDE, NeighbourList, _drifted, build_list, self_collide
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
@@ -345,9 +345,9 @@ def test_self_collision_matches_brute_force_as_points_move(parts):
 
 
 def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
-    """a dense clump (candidate ranges far longer than SHORT_RANGE, the vector
-    path) and a sparse cloud (short ranges, the plain path) in one search: the
-    list holds each pair closer than the radius and apart at rest exactly once"""
+    """a dense clump (candidate ranges of several WIDE chunks) and a sparse cloud
+    (ranges within one NARROW chunk) in one search: the list holds each pair
+    closer than the radius and apart at rest exactly once"""
     rng = np.random.default_rng(11)
     clump = rng.uniform(0, 0.05, size=(300, 3))
     cloud = rng.uniform(0.2, 1.2, size=(300, 3))
@@ -368,9 +368,9 @@ def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
     assert len(listed) == len(set(listed)) == found
     assert set(listed) == expected
     assert any(a < 20 and b < 20 for a, b in zip(*np.nonzero(np.triu(d < radius, 1))))
-    # the clump's cells hold far more points than SHORT_RANGE, the cloud's far fewer
+    # the clump's cells hold more points than two WIDE chunks, the cloud's fewer than one NARROW
     counts = np.diff(x.cell_start[:int(x.cell_start.argmax()) + 1])
-    assert counts.max() > 4 * SHORT_RANGE and np.median(counts[counts > 0]) < SHORT_RANGE
+    assert counts.max() > 2 * WIDE and np.median(counts[counts > 0]) < NARROW
 
 
 def test_drift_test_bounds_every_pair():
