@@ -92,7 +92,7 @@ class _Scratch:
         self.free = (~model.pinned).astype(np.float64)
         self.planes = np.zeros((2, 3, n))  # positions, last positions
         self.forces = force_buffer(self.stencil, n)
-        self.masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)  # Provot scratch
+        self.masks = np.zeros((parts, 2, n // BLOCK + 2), dtype=np.uint64)  # Provot scratch
         self.lists = NeighbourList(n, model.num_width_points, near_stencil(
             model.rest_positions, model.num_height_points, model.num_width_points, model.thickness),
             parts)
@@ -211,7 +211,7 @@ class Simulation:
             self.state.positions, self.state.last_positions, m.rest_positions, s.free,
             np.asarray(p.gravity, dtype=np.float64), k_over_m, p.enabled[SET_KIND],
             1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
-            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.share, st.runs, st.run_span,
+            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.batch, st.share,
             solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
             bool(p.self_collision), m.thickness, self._span, s.planes[0], s.planes[1], s.forces,
             s.masks, s.lists.buffers(), self._handle, self._handle_pos, self._center)

@@ -44,12 +44,9 @@ SET_STEP = ((0, 1), (1, 0), (1, 1), (1, -1), (0, 2), (2, 0))
 CHUNK = 512
 """points per chunk of the force loop: their forces stay in cache until gathered"""
 NO_LIMIT = 1e30
-"""the Provot limit of a spring outside the current batch: never reached"""
+"""the Provot limit where a set has no spring: never reached"""
 BLOCK = 64
-"""springs the Provot pass checks together before it corrects any: one bit each
-in a 64-bit word"""
-RUN_GAP = 16
-"""Provot batch runs closer than this many springs are merged into one run"""
+"""springs the Provot pass checks together: one bit each in a 64-bit word"""
 
 
 @dataclass(frozen=True)
@@ -67,18 +64,13 @@ class Stencil:
     rest: np.ndarray
     """rest lengths [m], 0 where no spring, (6, N)"""
     limit: np.ndarray
-    """Provot batches: ``limit[s, h, p]`` is MAX_STRETCH * rest [m] when spring p of
-    set s takes part in half h of the set's pass, else NO_LIMIT; the springs
-    of one half share no point, (6, 2, N)"""
+    """Provot: ``MAX_STRETCH * rest`` [m] where the spring exists, else NO_LIMIT, (6, N)"""
+    batch: np.ndarray
+    """the half of the set's Provot pass that spring p takes part in, uint8 (6, N):
+    the springs of one half share no point"""
     share: np.ndarray
     """fraction of a Provot correction that goes to each end, (6, 2, N): half
     each, all to the free end when the other is pinned, none when both are"""
-    runs: np.ndarray
-    """(first, stop) ranges of p, int64 (R, 2), that hold the springs of a
-    Provot batch; a vertical set's batch is every other row, so its pass
-    skips the rows it does not own"""
-    run_span: np.ndarray
-    """batch (s, h) owns ``runs[run_span[s, h, 0]:run_span[s, h, 1]]``, int64 (6, 2, 2)"""
 
 
 def build_stencil(model: ClothModel) -> Stencil:
@@ -89,7 +81,8 @@ def build_stencil(model: ClothModel) -> Stencil:
     start, end, count = np.zeros(6, np.int64), np.zeros(6, np.int64), np.zeros(6, np.int64)
     valid = np.zeros((6, n))
     rest = np.zeros((6, n))
-    limit = np.full((6, 2, n), NO_LIMIT)
+    limit = np.full((6, n), NO_LIMIT)
+    batch = np.zeros((6, n), dtype=np.uint8)
     share = np.zeros((6, 2, n))
     free = ~model.pinned
     pos = model.rest_positions
@@ -107,33 +100,12 @@ def build_stencil(model: ClothModel) -> Stencil:
         share[s, 0, p] = fa * (1.0 - 0.5 * fb)
         share[s, 1, p] = fb * (1.0 - 0.5 * fa)
         step = abs(di) if dr == 0 else dr
-        colour = ((i[p] if dr == 0 else r[p]) // step) % 2
-        for half in range(2):
-            on = ok & (colour == half)
-            limit[s, half, p[on]] = MAX_STRETCH * rest[s, p[on]]
-    runs, run_span = _batch_runs(limit)
-    for arr in (start, end, count, valid, rest, limit, share, runs, run_span):
+        # every other spring of a row (pairs of them for bending), or every other row
+        batch[s, p] = ((i[p] if dr == 0 else r[p]) // step) % 2
+        limit[s, p[ok]] = MAX_STRETCH * rest[s, p[ok]]
+    for arr in (start, end, count, valid, rest, limit, batch, share):
         arr.setflags(write=False)
-    return Stencil(start, end, count, valid, rest, limit, share, runs, run_span)
-
-
-def _batch_runs(limit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Contiguous ranges of each batch's springs; gaps under RUN_GAP are merged,
-    so a horizontal set's alternating batch is one range with limits that are
-    never reached in between."""
-    runs: list[tuple[int, int]] = []
-    span = np.zeros((6, 2, 2), dtype=np.int64)
-    for s in range(6):
-        for half in range(2):
-            span[s, half, 0] = len(runs)
-            on = np.flatnonzero(limit[s, half] < NO_LIMIT)
-            if len(on):
-                breaks = np.flatnonzero(np.diff(on) > RUN_GAP)
-                firsts = np.concatenate([[on[0]], on[breaks + 1]])
-                lasts = np.concatenate([on[breaks], [on[-1]]])
-                runs.extend(zip(firsts.tolist(), (lasts + 1).tolist()))
-            span[s, half, 1] = len(runs)
-    return np.array(runs, dtype=np.int64).reshape(-1, 2), span
+    return Stencil(start, end, count, valid, rest, limit, batch, share)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -240,7 +212,7 @@ def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def provot(P, enabled, start, end, count, limit, share, runs, run_span, masks, lo, hi, crossing):
+def provot(P, enabled, start, end, count, limit, batch, share, masks, lo, hi, crossing):
     """Shorten every enabled spring longer than its limit (1.1x rest) back to it.
 
     Only the springs with both ends in points ``lo:hi`` are taken, or with
@@ -248,54 +220,74 @@ def provot(P, enabled, start, end, count, limit, share, runs, run_span, masks, l
     thread then owns its part of the cloth; the springs across a cut
     between two parts are shortened afterwards. ``0, N, False`` takes all.
 
-    One Gauss-Seidel pass, in an order where each batch holds springs that
-    share no point (every other row of a vertical set, every other spring of
-    a row for a horizontal one). Within a batch that gives the same result as
-    any sequential order, so a whole run of a batch is checked before any of
-    it is corrected; springs outside the batch have a limit they never reach.
+    One Gauss-Seidel pass over each set in two batches of springs that share
+    no point (every other row of a vertical set, every other spring of a row
+    for a horizontal one): within a batch that gives the same result as any
+    sequential order.
 
     Few springs are over the limit at any time (a mean of 4 to 8 in each
-    block of BLOCK that has one, in the standard scenes), so the check, a
-    vectorised loop without square roots, only sets a bit per spring over,
-    and then only those springs are corrected, one by one. Correcting whole
-    flagged blocks as vectors instead took 2.5 times as long on pinned4.
-    Checking all blocks before correcting any keeps the check loop free of
-    calls, which would slow it down twofold. ``masks`` is uint64 scratch with
-    one word per block of the longest run.
+    block of BLOCK that has one, in the standard scenes). So the whole set is
+    first checked in a vectorised loop without square roots that only sets a
+    bit per spring over, and then only those springs are corrected, one by
+    one; correcting whole flagged blocks as vectors took 2.5 times as long
+    on pinned4. The check serves both batches: a spring of the second batch
+    can only have changed its length if a correction of the first moved one
+    of its ends, and those (the springs ``o`` before and after, ``o`` the
+    set's offset) are marked and checked again. Checking each batch on its
+    own walked a horizontal set twice. ``masks`` is uint64 scratch, (2, words),
+    a word per BLOCK springs of a set.
     """
     x, y, z = P[0], P[1], P[2]
+    found, again = masks[0], masks[1]
     for s in range(6):
         if not enabled[s]:
             continue
         oa, ob = start[s], end[s]
+        o = ob - oa
         # springs p of this set with both ends inside, or across the cut at lo
         plo, phi = (lo - ob, lo - oa) if crossing else (lo - oa, hi - ob)
-        wa, wb = share[s, 0], share[s, 1]
-        for half in range(2):
-            lim_h = limit[s, half]
-            for r in range(run_span[s, half, 0], run_span[s, half, 1]):
-                first, stop = max(runs[r, 0], plo), min(runs[r, 1], phi)
-                blocks = 0
-                for q in range(first, stop, BLOCK):
-                    n = min(BLOCK, stop - q)
-                    xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
-                    xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
-                    lim = lim_h[q:]
-                    mask = np.uint64(0)  # an or of shifted selects vectorises
-                    for p in range(n):
-                        dx = xb[p] - xa[p]
-                        dy = yb[p] - ya[p]
-                        dz = zb[p] - za[p]
-                        over = dx * dx + dy * dy + dz * dz > lim[p] * lim[p]
-                        mask |= np.uint64(1 if over else 0) << np.uint64(p)
-                    masks[blocks] = mask
-                    blocks += 1
-                for b in range(blocks):
-                    mask = masks[b]
-                    while mask != 0:
-                        p = first + b * BLOCK + np.int64(trailing_zeros(mask))
-                        mask &= mask - np.uint64(1)
-                        _correct(P, oa + p, ob + p, lim_h[p], wa[p], wb[p])
+        first, stop = max(plo, 0), min(phi, count[s])
+        lim_s, batch_s, wa, wb = limit[s], batch[s], share[s, 0], share[s, 1]
+        words = 0
+        for q in range(first, stop, BLOCK):
+            n = min(BLOCK, stop - q)
+            xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
+            xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
+            lim = lim_s[q:]
+            mask = np.uint64(0)  # an or of shifted selects vectorises
+            for p in range(n):
+                dx = xb[p] - xa[p]
+                dy = yb[p] - ya[p]
+                dz = zb[p] - za[p]
+                over = dx * dx + dy * dy + dz * dz > lim[p] * lim[p]
+                mask |= np.uint64(1 if over else 0) << np.uint64(p)
+            found[words] = mask
+            again[words] = 0
+            words += 1
+        for w in range(words):
+            mask = found[w]
+            while mask != 0:
+                p = first + w * BLOCK + np.int64(trailing_zeros(mask))
+                mask &= mask - np.uint64(1)
+                if batch_s[p] != 0:
+                    continue
+                _correct(P, oa + p, ob + p, lim_s[p], wa[p], wb[p])
+                for j in (p - o - first, p + o - first):
+                    if 0 <= j < stop - first:
+                        again[j // BLOCK] |= np.uint64(1) << np.uint64(j % BLOCK)
+        for w in range(words):
+            mask = found[w] | again[w]
+            while mask != 0:
+                p = first + w * BLOCK + np.int64(trailing_zeros(mask))
+                mask &= mask - np.uint64(1)
+                if batch_s[p] == 0:
+                    continue
+                a, b = oa + p, ob + p
+                dx = x[b] - x[a]
+                dy = y[b] - y[a]
+                dz = z[b] - z[a]
+                if dx * dx + dy * dy + dz * dz > lim_s[p] * lim_s[p]:
+                    _correct(P, a, b, lim_s[p], wa[p], wb[p])
 
 
 @njit(**KERNEL_OPTIONS, inline="always")

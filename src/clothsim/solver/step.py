@@ -77,7 +77,7 @@ def _from_planes(P, pos):
 
 
 def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
-             start, end, count, valid, rest_length, limit, share, runs, run_span, spheres, planes,
+             start, end, count, valid, rest_length, limit, batch, share, spheres, planes,
              self_collision, thickness, span, P, L, F, masks, lists, handle, handle_pos, center):
     """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
 
@@ -133,18 +133,18 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
         if parts == 1:
             collide_spheres(P, L, free, spheres, 0, n)
             collide_planes(P, L, free, planes, 0, n)
-            provot(P, enabled, start, end, count, limit, share, runs, run_span, masks[0], 0, n,
+            provot(P, enabled, start, end, count, limit, batch, share, masks[0], 0, n,
                    False)
         else:
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
                 collide_spheres(P, L, free, spheres, lo, hi)
                 collide_planes(P, L, free, planes, lo, hi)
-                provot(P, enabled, start, end, count, limit, share, runs, run_span, masks[t],
+                provot(P, enabled, start, end, count, limit, batch, share, masks[t],
                        lo, hi, False)
             for t in range(1, parts):
                 lo, _ = _chunk_range(n, parts, t)
-                provot(P, enabled, start, end, count, limit, share, runs, run_span, masks[0],
+                provot(P, enabled, start, end, count, limit, batch, share, masks[0],
                        lo, lo, True)
         if handle >= 0:
             _hold(P, handle, handle_pos)
