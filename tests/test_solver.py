@@ -293,6 +293,21 @@ def test_self_collision_pushes_pair_apart():
     np.testing.assert_allclose(np.linalg.norm(pos[1] - before[0]), 2 * t, rtol=1e-12)
 
 
+def test_self_collision_pushes_once():
+    """the pushes of one substep are not applied again in the next: after a collision
+    the push buffers are back at zero, and a second call with the pair already
+    apart moves nothing"""
+    t = 0.01
+    pos = np.array([[0.995, 0.5, 0.5], [1.005, 0.5, 0.5], [0.3, 0.3, 0.3]])
+    rest = np.array([[0.0, 0, 0], [5.0, 0, 0], [9.0, 0, 0]])
+    x = NeighbourList(3)
+    assert _self_collide(pos, rest, t, lists=x) == 1
+    assert not x.push.any() and not x.count.any()
+    apart = pos.copy()
+    assert _self_collide(pos, rest, t, lists=x) == 0
+    np.testing.assert_array_equal(pos, apart)
+
+
 def test_self_collision_averages_and_divides_by_steps():
     """the push on a point is the mean over its colliding neighbours divided by simulation_steps"""
     t = 0.05

@@ -565,7 +565,6 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
         return pairs, 0
     listed = meta[PAIRS]
     for t in prange(parts):
-        _clear(push[t], count[t])
         h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], near_masks[t], t,
                         parts)
         k0, k1 = part_range(listed, parts, t)
@@ -600,16 +599,6 @@ def _copy(src, dst):
         a, b = src[c], dst[c]
         for p in range(a.shape[0]):
             b[p] = a[p]
-
-
-@njit(**KERNEL_OPTIONS)
-def _clear(push, count):
-    for c in range(3):
-        pc = push[c]
-        for p in range(pc.shape[0]):
-            pc[p] = 0.0
-    for p in range(count.shape[0]):
-        count[p] = 0.0
 
 
 @njit(**EXACT_OPTIONS)
@@ -647,7 +636,9 @@ def pair_pushes(P, reach, pairs, k0, k1, push, count):
 @njit(**KERNEL_OPTIONS)
 def apply_pushes(P, push, count, free, inv_steps, lo, hi):
     """Move points ``lo:hi`` by their summed pushes, averaged over their colliding
-    pairs and divided by the substeps; sums the parts' pushes into part 0 first."""
+    pairs and divided by the substeps; sums the parts' pushes into part 0 first.
+    The pushes and counts are left at zero for the next substep: a separate pass
+    to clear them would run every substep, this one only when something collided."""
     parts = push.shape[0]
     m = hi - lo
     c0 = count[0, lo:]
@@ -655,15 +646,22 @@ def apply_pushes(P, push, count, free, inv_steps, lo, hi):
         ct = count[t, lo:]
         for p in range(m):
             c0[p] += ct[p]
+            ct[p] = 0.0
     fr = free[lo:]
+    for p in range(m):  # the weight of each point's summed push, into c0
+        c0[p] = fr[p] * inv_steps / max(c0[p], 1.0)
     for c in range(3):
         xc, p0 = P[c, lo:], push[0, c, lo:]
         for t in range(1, parts):
             pt = push[t, c, lo:]
             for p in range(m):
                 p0[p] += pt[p]
+                pt[p] = 0.0
         for p in range(m):
-            xc[p] += p0[p] * fr[p] * inv_steps / max(c0[p], 1.0)
+            xc[p] += p0[p] * c0[p]
+            p0[p] = 0.0
+    for p in range(m):
+        c0[p] = 0.0
 
 
 @njit(**KERNEL_OPTIONS)
