@@ -13,7 +13,7 @@ from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                   integrate, provot)
-from clothsim.solver.self_collide import NARROW, WIDE, NeighbourList, _drifted, build_list, self_collide
+from clothsim.solver.self_collide import NARROW, WIDE, NeighbourList, _bounds, _drifted, build_list, self_collide
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
@@ -415,6 +415,24 @@ def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():
     rest = rng.uniform(0, 30, size=pos.shape)
     t = 0.01
     assert _self_collide(pos.copy(), rest, t, steps=10 ** 9) == brute_force_pairs(pos, rest, 2 * t) > 0
+
+
+def test_bounds_on_the_bits_match_min_and_max():
+    """the box from the integer keys equals NumPy's min and max for negative, positive,
+    signed-zero and tiny coordinates; inf or NaN anywhere gives False"""
+    rng = np.random.default_rng(2)
+    P = rng.normal(scale=1e3, size=(3, 1001))
+    P[0, :4] = [-0.0, 0.0, 5e-324, -5e-324]
+    P[1] = np.abs(P[1])          # all positive
+    P[2] = -np.abs(P[2]) - 1.0   # all negative
+    lo, hi = np.empty(3), np.empty(3)
+    assert _bounds(P, lo, hi)
+    np.testing.assert_array_equal(lo, P.min(axis=1))
+    np.testing.assert_array_equal(hi, P.max(axis=1))
+    for bad in (np.inf, -np.inf, np.nan):
+        Q = P.copy()
+        Q[1, 500] = bad
+        assert not _bounds(Q, lo, hi)
 
 
 def test_self_collision_skips_a_blown_up_state():
