@@ -626,30 +626,36 @@ def pair_pushes(P, reach, pairs, k0, k1, push, count):
     and ``count`` (N,); returns how many pairs that was."""
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
-    px, py, pz = push[0], push[1], push[2]
     hits = 0
     for k in range(k0, k1):
         # unsigned: a signed index costs a negative-index check per access, 12-20% here
         a = np.uint64(pairs[0, k])
         b = np.uint64(pairs[1, k])
-        dx = x[a] - x[b]
-        dy = y[a] - y[b]
-        dz = z[a] - z[b]
-        d2 = dx * dx + dy * dy + dz * dz
+        d2 = (x[a] - x[b]) ** 2 + (y[a] - y[b]) ** 2 + (z[a] - z[b]) ** 2
         if d2 >= reach2 or d2 == 0.0:
             continue
-        d = np.sqrt(d2)
-        s = (reach - d) / d
-        px[a] += dx * s
-        py[a] += dy * s
-        pz[a] += dz * s
-        px[b] -= dx * s
-        py[b] -= dy * s
-        pz[b] -= dz * s
-        count[a] += 1.0
-        count[b] += 1.0
+        _push(P, a, b, reach, push, count)
         hits += 1
     return hits
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _push(P, a, b, reach, push, count):
+    """Add the push of the pair (a, b), closer than ``reach``, to both ends: each
+    goes to ``reach`` from the other's place."""
+    dx = P[0, a] - P[0, b]
+    dy = P[1, a] - P[1, b]
+    dz = P[2, a] - P[2, b]
+    d = np.sqrt(dx * dx + dy * dy + dz * dz)
+    s = (reach - d) / d
+    push[0, a] += dx * s
+    push[1, a] += dy * s
+    push[2, a] += dz * s
+    push[0, b] -= dx * s
+    push[1, b] -= dy * s
+    push[2, b] -= dz * s
+    count[a] += 1.0
+    count[b] += 1.0
 
 
 @njit(**KERNEL_OPTIONS)
@@ -696,7 +702,6 @@ def near_pushes(P, reach, offsets, weight, push, count, masks, part, parts):
     n = P.shape[1]
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
-    px, py, pz = push[0], push[1], push[2]
     hits = 0
     for s in range(offsets.shape[0]):
         o = offsets[s]
@@ -726,18 +731,6 @@ def near_pushes(P, reach, offsets, weight, push, count, masks, part, parts):
             while mask != 0:
                 a = first + b * BLOCK + np.int64(trailing_zeros(mask))
                 mask &= mask - np.uint64(1)
-                dx = x[a] - x[a + o]
-                dy = y[a] - y[a + o]
-                dz = z[a] - z[a + o]
-                d = np.sqrt(dx * dx + dy * dy + dz * dz)
-                f = (reach - d) / d
-                px[a] += dx * f
-                py[a] += dy * f
-                pz[a] += dz * f
-                px[a + o] -= dx * f
-                py[a + o] -= dy * f
-                pz[a + o] -= dz * f
-                count[a] += 1.0
-                count[a + o] += 1.0
+                _push(P, a, a + o, reach, push, count)
                 hits += 1
     return hits
