@@ -267,8 +267,8 @@ def provot(P, enabled, start, end, count, limit, batch, share, masks, lo, hi, cr
         for w in range(words):
             mask = found[w]
             while mask != 0:
-                p = first + w * BLOCK + np.int64(trailing_zeros(mask))
-                mask &= mask - np.uint64(1)
+                j, mask = pop_lowest(mask)
+                p = first + w * BLOCK + j
                 if batch_s[p] != 0:
                     continue
                 _correct(P, oa + p, ob + p, lim_s[p], wa[p], wb[p])
@@ -278,8 +278,8 @@ def provot(P, enabled, start, end, count, limit, batch, share, masks, lo, hi, cr
         for w in range(words):
             mask = found[w] | again[w]
             while mask != 0:
-                p = first + w * BLOCK + np.int64(trailing_zeros(mask))
-                mask &= mask - np.uint64(1)
+                j, mask = pop_lowest(mask)
+                p = first + w * BLOCK + j
                 if batch_s[p] == 0:
                     continue
                 a, b = oa + p, ob + p
@@ -288,6 +288,13 @@ def provot(P, enabled, start, end, count, limit, batch, share, masks, lo, hi, cr
                 dz = z[b] - z[a]
                 if dx * dx + dy * dy + dz * dz > lim_s[p] * lim_s[p]:
                     _correct(P, a, b, lim_s[p], wa[p], wb[p])
+
+
+@njit(cache=True, inline="always")
+def pop_lowest(mask):
+    """(index of the lowest set bit of the uint64 ``mask``, mask without it): one
+    step of a walk over the bits a vectorised check set."""
+    return np.int64(trailing_zeros(mask)), mask & (mask - np.uint64(1))
 
 
 @njit(**KERNEL_OPTIONS, inline="always")

@@ -30,9 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
-from numba.cpython.unsafe.numbers import trailing_zeros
 
-from .grid import BLOCK, KERNEL_OPTIONS
+from .grid import BLOCK, KERNEL_OPTIONS, pop_lowest
 
 EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
 """for the kernels that test for NaN before turning coordinates into cell
@@ -458,8 +457,8 @@ def _collect(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, rad
         ok = (dx * dx + dy * dy + dz * dz < radius2) & (er * er * wr2 + ec * ec * wc2 >= rho2) & (q < stop)
         mask |= np.uint64(1 if ok else 0) << np.uint64(j)
     while mask != 0:
-        near[inside] = at + np.int64(trailing_zeros(mask))
-        mask &= mask - np.uint64(1)
+        j, mask = pop_lowest(mask)
+        near[inside] = at + j
         inside += 1
     return inside
 
@@ -729,8 +728,8 @@ def near_pushes(P, reach, offsets, weight, push, count, masks, part, parts):
         for b in range(blocks):
             mask = masks[b]
             while mask != 0:
-                a = first + b * BLOCK + np.int64(trailing_zeros(mask))
-                mask &= mask - np.uint64(1)
+                j, mask = pop_lowest(mask)
+                a = first + b * BLOCK + j
                 _push(P, a, a + o, reach, push, count)
                 hits += 1
     return hits
