@@ -13,7 +13,8 @@ from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                   integrate, provot)
-from clothsim.solver.self_collide import NARROW, WIDE, NeighbourList, _bounds, _drifted, build_list, self_collide
+from clothsim.solver.self_collide import (NARROW, SPARSE_PAIRS, WIDE, NeighbourList, _bounds, _drifted, build_list,
+                                          self_collide)
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
@@ -462,6 +463,27 @@ def reference_self_collision(pos, rest, free, reach, steps):
     push = (d * scale[..., None]).sum(axis=1)
     count = hit.sum(axis=1)
     return pos + push * free[:, None] / steps / np.maximum(count, 1)[:, None], int(hit.sum()) // 2
+
+
+@pytest.mark.parametrize("parts", [1, 2])
+@pytest.mark.parametrize("points", [60, 400])
+def test_few_and_many_pushes_move_points_alike(points, parts):
+    """a handful of colliding pairs (only their ends are visited) and hundreds (every
+    point is) push exactly as the brute-force reference does, pinned points stay,
+    and the buffers are left at zero"""
+    rng = np.random.default_rng(points)
+    pos = rng.uniform(0, 0.25, size=(points, 3))
+    rest = rng.uniform(0, 5, size=(points, 3))
+    pinned = rng.uniform(size=points) < 0.2
+    free = (~pinned).astype(float)
+    expected, hits = reference_self_collision(pos, rest, free, 0.04, 3)
+    assert (hits <= SPARSE_PAIRS) == (points == 60) and hits > 5
+    x = NeighbourList(points, parts=parts)
+    P = planes(pos)
+    x.pairs, found = self_collide(P, rest, free, 0.02, 3, np.inf, *x.buffers())
+    assert found == hits
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-13)
+    assert not x.push.any() and not x.count.any()
 
 
 def folded_cloth(n, ratio, squeeze):

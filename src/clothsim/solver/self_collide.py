@@ -56,6 +56,10 @@ CELLS_PER_POINT = 8
 NEAR = 5
 """grid offsets up to this many rows and columns may be checked as a stencil"""
 
+SPARSE_PAIRS = 64
+"""when no part pushed more pairs than this, only their ends are moved, not
+every point: see :func:`apply_pushes`"""
+
 QUERY_SHARES = 4
 """shares of the list build per thread, where there is more than one"""
 
@@ -211,6 +215,7 @@ class NeighbourList:
                     np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64), np.zeros(4))
         self.near_offset, self.near_weight, self.near_table, self.near_metric = near
         self.near_masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)
+        self.touched = np.zeros((parts, 2 * SPARSE_PAIRS), dtype=np.int64)  # ends of pushed pairs
         # pairs found per share of the list build, pairs pushed per part
         self.tally = np.zeros((parts * (QUERY_SHARES if parts > 1 else 1), 2), dtype=np.int64)
 
@@ -219,7 +224,7 @@ class NeighbourList:
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
                 self.candidates, self.reference, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
-                self.near_masks, self.tally)
+                self.near_masks, self.touched, self.tally)
 
     @property
     def rebuilds(self) -> int:
@@ -530,7 +535,7 @@ def _drifted(P, reference, skin):
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
                  sorted_pos, candidates, reference, pairs, push, count, meta, near_offset, near_weight,
-                 near_table, near_metric, near_masks, tally):
+                 near_table, near_metric, near_masks, touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -583,18 +588,22 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
         return pairs, 0
     listed = meta[PAIRS]
     for t in prange(parts):
-        h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], near_masks[t], t,
-                        parts)
+        h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
+                        near_masks[t], t, parts)
         k0, k1 = part_range(listed, parts, t)
-        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, k1, push[t], count[t])
-    hits = 0
+        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, k1, push[t], count[t], touched[t], h)
+    hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]
+        most = max(most, tally[t, 1])
     if hits > 0:
         inv_steps = 1.0 / simulation_steps
-        for t in prange(parts):
-            lo, hi = part_range(n, parts, t)
-            apply_pushes(P, push, count, free, inv_steps, lo, hi)
+        if most <= SPARSE_PAIRS:
+            apply_sparse(P, push, count, free, inv_steps, touched, tally)
+        else:
+            for t in prange(parts):
+                lo, hi = part_range(n, parts, t)
+                apply_pushes(P, push, count, free, inv_steps, lo, hi)
     return pairs, hits
 
 
@@ -620,9 +629,11 @@ def _copy(src, dst):
 
 
 @njit(**EXACT_OPTIONS)
-def pair_pushes(P, reach, pairs, k0, k1, push, count):
+def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before):
     """Add the pushes of listed pairs ``k0:k1`` closer than ``reach`` to ``push`` (3, N)
-    and ``count`` (N,); returns how many pairs that was."""
+    and ``count`` (N,), noting their ends in ``touched`` after those of the
+    ``before`` pairs pushed already (see :func:`_push`); returns how many
+    pairs that was."""
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
     hits = 0
@@ -633,15 +644,16 @@ def pair_pushes(P, reach, pairs, k0, k1, push, count):
         d2 = (x[a] - x[b]) ** 2 + (y[a] - y[b]) ** 2 + (z[a] - z[b]) ** 2
         if d2 >= reach2 or d2 == 0.0:
             continue
-        _push(P, a, b, reach, push, count)
+        _push(P, a, b, reach, push, count, touched, before + hits)
         hits += 1
     return hits
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _push(P, a, b, reach, push, count):
+def _push(P, a, b, reach, push, count, touched, k):
     """Add the push of the pair (a, b), closer than ``reach``, to both ends: each
-    goes to ``reach`` from the other's place."""
+    goes to ``reach`` from the other's place. The ``k``-th pair a part pushes
+    notes its ends in ``touched[2k:2k + 2]`` while there is room."""
     dx = P[0, a] - P[0, b]
     dy = P[1, a] - P[1, b]
     dz = P[2, a] - P[2, b]
@@ -655,6 +667,39 @@ def _push(P, a, b, reach, push, count):
     push[2, b] -= dz * s
     count[a] += 1.0
     count[b] += 1.0
+    if 2 * k < touched.shape[0]:
+        touched[2 * k] = a
+        touched[2 * k + 1] = b
+
+
+@njit(**KERNEL_OPTIONS)
+def apply_sparse(P, push, count, free, inv_steps, touched, tally):
+    """:func:`apply_pushes` for the ends of the pushed pairs only, when each part
+    noted all of its pairs in ``touched`` (``tally[t, 1]`` pairs in part t).
+
+    A hanging cloth pushes a few pairs in a substep, and a pass over every
+    point cost as much as the near stencil. A point noted again has a zero
+    count by then and is skipped.
+    """
+    parts = push.shape[0]
+    for t in range(parts):
+        ends = touched[t]
+        for k in range(2 * tally[t, 1]):
+            a = ends[k]
+            c = 0.0
+            for u in range(parts):
+                c += count[u, a]
+            if c == 0.0:
+                continue
+            f = free[a] * inv_steps / c
+            for j in range(3):
+                s = 0.0
+                for u in range(parts):
+                    s += push[u, j, a]
+                    push[u, j, a] = 0.0
+                P[j, a] += s * f
+            for u in range(parts):
+                count[u, a] = 0.0
 
 
 @njit(**KERNEL_OPTIONS)
@@ -689,9 +734,10 @@ def apply_pushes(P, push, count, free, inv_steps, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def near_pushes(P, reach, offsets, weight, push, count, masks, part, parts):
+def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, parts):
     """Add the pushes of the near-stencil pairs closer than ``reach`` to ``push``
-    and ``count``; returns how many pairs that was. Only part ``part`` of
+    and ``count``, noting their ends in ``touched`` (see :func:`_push`);
+    returns how many pairs that was. Only part ``part`` of
     ``parts`` of each offset's blocks is taken.
 
     As in the Provot pass, a whole offset set is first only checked, block by
@@ -730,6 +776,6 @@ def near_pushes(P, reach, offsets, weight, push, count, masks, part, parts):
             while mask != 0:
                 j, mask = pop_lowest(mask)
                 a = first + b * BLOCK + j
-                _push(P, a, a + o, reach, push, count)
+                _push(P, a, a + o, reach, push, count, touched, hits)
                 hits += 1
     return hits
