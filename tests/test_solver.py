@@ -393,19 +393,47 @@ def test_drift_test_bounds_every_pair():
     rng = np.random.default_rng(2)
     ref = rng.uniform(0, 1, size=(3, 5000))
     skin = 0.01
-    assert not _drifted(ref + [[0.3], [-0.2], [0.1]], ref, skin)  # all alike: rigid shift
+
+    def drifted(P):
+        return _drifted(P, ref, skin, np.zeros((2, 3)))  # no centres kept from before
+
+    assert not drifted(ref + [[0.3], [-0.2], [0.1]])  # all alike: rigid shift
     part = ref.copy()
     part[1, :500] -= 0.9 * skin  # a tenth falls, the rest stays: pairs differ by 0.9 skin
-    assert not _drifted(part, ref, skin)
+    assert not drifted(part)
     one = ref.copy()
     one[0, 4321] += 1.01 * skin  # a single point, off the sample's stride, moves past the skin
-    assert _drifted(one, ref, skin)
+    assert drifted(one)
     spread = ref + rng.normal(scale=0.2 * skin, size=ref.shape)
-    assert _drifted(spread, ref, skin)  # random motion: some pair may differ by the skin
+    assert drifted(spread)  # random motion: some pair may differ by the skin
     bad = ref.copy()
     bad[2, 17] = np.nan
-    assert _drifted(bad, ref, skin)
+    assert drifted(bad)
 
+
+def test_drift_test_keeps_centres_while_they_hold():
+    """centres that still hold every displacement are kept; ones that no longer do
+    are chosen afresh, so the verdict is that of fresh centres, a NaN included"""
+    rng = np.random.default_rng(3)
+    ref = rng.uniform(0, 1, size=(3, 5000))
+    skin = 0.01
+    centres = np.zeros((2, 3))
+    part = ref.copy()
+    part[1, :2500] -= 0.6 * skin  # half falls: only the box middle holds
+    assert not _drifted(part, ref, skin, centres)
+    np.testing.assert_allclose(centres[1], [0, -0.3 * skin, 0], atol=1e-15)
+    chosen = centres.copy()
+    part[1, :2500] -= 0.1 * skin  # the old middle still holds (0.4 skin < 0.5 skin)
+    assert not _drifted(part, ref, skin, centres)
+    np.testing.assert_array_equal(centres, chosen)
+    part += [[0.0], [0.0], [0.4 * skin]]  # all shift: the old centres fail, new ones hold
+    assert not _drifted(part, ref, skin, centres)
+    np.testing.assert_allclose(centres[1], [0, -0.35 * skin, 0.4 * skin], atol=1e-15)
+    part[1, :2500] -= 0.4 * skin  # the halves now differ by 1.1 skin: no centre holds
+    assert _drifted(part, ref, skin, centres)
+    part[1, :2500] += 0.4 * skin
+    part[0, 99] = np.nan
+    assert _drifted(part, ref, skin, centres)
 
 def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():
     """clusters metres apart would need far more cells than the buffer holds: the

@@ -205,6 +205,7 @@ class NeighbourList:
         self.sorted_pos = np.zeros((8, n + PAD))
         self.candidates = np.zeros((parts, n), dtype=np.int64)  # slots of one point's candidates
         self.reference = np.zeros((3, n))
+        self.centres = np.zeros((2, 3))  # of the drift test: see _drifted
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
         self.push = np.zeros((parts, 3, n))
         self.count = np.zeros((parts, n))
@@ -222,7 +223,7 @@ class NeighbourList:
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
-                self.candidates, self.reference, self.pairs, self.push, self.count, self.meta,
+                self.candidates, self.reference, self.centres, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
                 self.near_masks, self.touched, self.tally)
 
@@ -485,7 +486,7 @@ the drift test"""
 
 
 @njit(**DRIFT_OPTIONS)
-def _drifted(P, reference, skin):
+def _drifted(P, reference, skin, centres):
     """Whether two points may have come closer by ``skin`` since the list was built.
 
     If every displacement d lies within ``skin/2`` of one centre c, any two
@@ -497,11 +498,24 @@ def _drifted(P, reference, skin):
     each ball, a sum of selects that LLVM vectorises; the running maxima of
     a box of all displacements do not vectorise, and took six to eight
     times as long at 100x100.
+
+    ``centres`` (2, 3) keeps the last centres chosen, and they are tried
+    first: choosing them from the sample cost half again as much as the
+    pass, and the displacements change little from one substep to the
+    next, so old centres mostly still hold. Only when neither does are
+    new ones chosen and tried.
     """
+    if _outside_both(P, reference, skin, centres) == 0.0:
+        return False
+    _choose_centres(P, reference, centres)
+    return _outside_both(P, reference, skin, centres) != 0.0
+
+
+@njit(**DRIFT_OPTIONS)
+def _choose_centres(P, reference, centres):
+    """The mean and the box middle of a sample of the displacements, into ``centres``."""
     n = P.shape[1]
     step = max(1, n // DRIFT_SAMPLE)
-    mean = np.zeros(3)
-    mid = np.zeros(3)
     for c in range(3):
         s, lo, hi = 0.0, np.inf, -np.inf
         x, r = P[c], reference[c]
@@ -512,11 +526,18 @@ def _drifted(P, reference, skin):
             lo = d if d < lo else lo
             hi = d if d > hi else hi
             k += 1
-        mean[c] = s / k
-        mid[c] = 0.5 * (lo + hi)
+        centres[0, c] = s / k
+        centres[1, c] = 0.5 * (lo + hi)
+
+
+@njit(**DRIFT_OPTIONS)
+def _outside_both(P, reference, skin, centres):
+    """0 when every displacement lies within ``skin/2`` of either centre; a NaN
+    displacement lies outside both."""
+    n = P.shape[1]
     limit = 0.25 * skin * skin
-    m0, m1, m2 = mean[0], mean[1], mean[2]
-    c0, c1, c2 = mid[0], mid[1], mid[2]
+    m0, m1, m2 = centres[0, 0], centres[0, 1], centres[0, 2]
+    c0, c1, c2 = centres[1, 0], centres[1, 1], centres[1, 2]
     x, y, z = P[0], P[1], P[2]
     rx, ry, rz = reference[0], reference[1], reference[2]
     outside_mean = 0.0
@@ -529,12 +550,13 @@ def _drifted(P, reference, skin):
         b = (dx - c0) * (dx - c0) + (dy - c1) * (dy - c1) + (dz - c2) * (dz - c2)
         outside_mean += 0.0 if a < limit else 1.0  # NaN counts as outside
         outside_mid += 0.0 if b < limit else 1.0
-    return outside_mean > 0.0 and outside_mid > 0.0
+    return min(outside_mean, outside_mid)
 
 
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
-                 sorted_pos, candidates, reference, pairs, push, count, meta, near_offset, near_weight,
+                 sorted_pos, candidates, reference, centres, pairs, push, count, meta, near_offset,
+                 near_weight,
                  near_table, near_metric, near_masks, touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
@@ -555,7 +577,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     parts = push.shape[0]
     reach = 2.0 * thickness
     skin = SKIN_FACTOR * reach
-    if meta[VALID] == 0 or _drifted(P, reference, skin):
+    if meta[VALID] == 0 or _drifted(P, reference, skin, centres):
         radius = reach + skin
         grid = _sort_into_cells(P, rest, radius, span, meta[COLS], cell_start, cell_of, order, slot,
                                 sorted_pos)
@@ -582,6 +604,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
             pairs = np.empty((2, shares * size), dtype=np.int32)
         meta[PAIRS] = _close_up(pairs, tally, size)
         _copy(P, reference)
+        centres[:] = 0.0
         meta[VALID] = 1
         meta[REBUILDS] += 1
     if meta[VALID] == 0:

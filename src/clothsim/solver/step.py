@@ -101,8 +101,8 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     parts one after another, and as :func:`advance_parallel`, where each
     ``prange`` hands them to threads.
     """
-    (cell_start, cell_of, order, slot, sorted_pos, candidates, reference, pairs, push, contacts, meta,
-     near_offset, near_weight, near_table, near_metric, near_masks, touched, tally) = lists
+    (cell_start, cell_of, order, slot, sorted_pos, candidates, reference, centres, pairs, push, contacts,
+     meta, near_offset, near_weight, near_table, near_metric, near_masks, touched, tally) = lists
     parts = push.shape[0]
     _to_planes(pos, P)
     _to_planes(last, L)
@@ -127,8 +127,8 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
-                                    cell_of, order, slot, sorted_pos, candidates, reference, pairs, push,
-                                    contacts, meta, near_offset, near_weight, near_table,
+                                    cell_of, order, slot, sorted_pos, candidates, reference, centres,
+                                    pairs, push, contacts, meta, near_offset, near_weight, near_table,
                                     near_metric, near_masks, touched, tally)
         if parts == 1:
             collide_spheres(P, L, free, spheres, 0, n)
