@@ -270,13 +270,15 @@ def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, sl
     inv = 1.0 / size
     inv_x = X_SPLIT / size
     cell_start[:cells + 1] = 0
+    x, y, z = P[0], P[1], P[2]
+    x0, y0, z0 = lo[0], lo[1], lo[2]
+    for p in range(n):  # apart from the counting below, which does not vectorise
+        ix = max(min(np.int64((x[p] - x0) * inv_x), nx - 1), 0)
+        iy = max(min(np.int64((y[p] - y0) * inv), ny - 1), 0)
+        iz = max(min(np.int64((z[p] - z0) * inv), nz - 1), 0)
+        cell_of[p] = (iz * ny + iy) * nx + ix
     for p in range(n):
-        ix = max(min(np.int64((P[0, p] - lo[0]) * inv_x), nx - 1), 0)
-        iy = max(min(np.int64((P[1, p] - lo[1]) * inv), ny - 1), 0)
-        iz = max(min(np.int64((P[2, p] - lo[2]) * inv), nz - 1), 0)
-        cell = (iz * ny + iy) * nx + ix
-        cell_of[p] = cell
-        cell_start[cell + 1] += 1
+        cell_start[cell_of[p] + 1] += 1
     for c in range(1, cells + 1):
         cell_start[c] += cell_start[c - 1]
     # place each point at the end of its cell's remaining room, from the last
