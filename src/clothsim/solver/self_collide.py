@@ -58,7 +58,7 @@ NEAR = 5
 
 SPARSE_PAIRS = 64
 """when no part pushed more pairs than this, only their ends are moved, not
-every point: see :func:`apply_pushes`"""
+every point: see :func:`apply_sparse`"""
 
 QUERY_SHARES = 4
 """shares of the list build per thread, where there is more than one"""
@@ -558,8 +558,7 @@ def _outside_both(P, reference, skin, centres):
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
                  sorted_pos, candidates, reference, centres, pairs, push, count, meta, near_offset,
-                 near_weight,
-                 near_table, near_metric, near_masks, touched, tally):
+                 near_weight, near_table, near_metric, near_masks, touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -703,28 +702,14 @@ def apply_sparse(P, push, count, free, inv_steps, touched, tally):
     noted all of its pairs in ``touched`` (``tally[t, 1]`` pairs in part t).
 
     A hanging cloth pushes a few pairs in a substep, and a pass over every
-    point cost as much as the near stencil. A point noted again has a zero
-    count by then and is skipped.
+    point cost as much as the near stencil. A point noted again has been
+    applied and zeroed by then, so applying it again moves it by nothing.
     """
-    parts = push.shape[0]
-    for t in range(parts):
+    for t in range(push.shape[0]):
         ends = touched[t]
         for k in range(2 * tally[t, 1]):
             a = ends[k]
-            c = 0.0
-            for u in range(parts):
-                c += count[u, a]
-            if c == 0.0:
-                continue
-            f = free[a] * inv_steps / c
-            for j in range(3):
-                s = 0.0
-                for u in range(parts):
-                    s += push[u, j, a]
-                    push[u, j, a] = 0.0
-                P[j, a] += s * f
-            for u in range(parts):
-                count[u, a] = 0.0
+            apply_pushes(P, push, count, free, inv_steps, a, a + 1)
 
 
 @njit(**KERNEL_OPTIONS)
