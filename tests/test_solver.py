@@ -374,7 +374,7 @@ def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
     x.pairs = np.zeros((2, n * n // 2), dtype=np.int32)
     b = x.buffers()
     found = build_list(planes(pos), rest, reach, radius, np.inf, *b[:5], x.pairs, x.meta[3],
-                       x.near_table, x.near_metric, x.candidates)
+                       x.near_table, x.near_metric)
     d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
     r = np.linalg.norm(rest[:, None] - rest[None], axis=2)
     expected = {(a, b) for a, b in zip(*np.nonzero(np.triu((d < radius) & (r >= reach), 1)))}
@@ -553,7 +553,7 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
         x = NeighbourList(m.num_points, n, (*near[:3], metric))
         x.pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
         found = build_list(planes(pos), rest, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
-                           x.pairs, n, x.near_table, x.near_metric, x.candidates)
+                           x.pairs, n, x.near_table, x.near_metric)
         assert 0 < found <= x.pairs.shape[1]
         lists.append(x.pairs[:, :found].copy())
     np.testing.assert_array_equal(lists[0], lists[1])
@@ -563,9 +563,36 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
             x = NeighbourList(m.num_points, n, (*near[:3], metric))
             x.pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
             counts.append(build_list(planes(rest), rest, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
-                                     x.pairs, n, x.near_table, x.near_metric, x.candidates))
+                                     x.pairs, n, x.near_table, x.near_metric))
         assert counts[1] > counts[0]
     assert grid_metric(rest, n, n, np.zeros((6, 11), bool), reach)[3] == 0.0
+
+
+@pytest.mark.parametrize("sparse", [True, False])
+def test_list_build_writes_the_same_pairs_directly_and_stops_at_its_capacity(sparse):
+    """on a regular grid the build writes each chunk's bits straight into the pairs
+    array (two whether there or not, counted only if there); it must list
+    exactly what the checked path lists, in the same order, and with too little
+    room store the first pairs, count them all and write nothing past the end"""
+    m, near, pos = folded_cloth(40, 0.75, 0.9)
+    assert near[3][3] == 1.0  # exact: the direct writes apply
+    n, reach = 40, 2 * m.thickness
+
+    def build(metric, pairs):
+        x = NeighbourList(m.num_points, n, (*near[:3], metric))
+        return build_list(planes(pos), m.rest_positions, reach, 1.5 * reach, np.inf,
+                          *x.buffers()[:5], pairs, n, x.near_table, x.near_metric, sparse)
+
+    checked = np.zeros((2, 40 * m.num_points), dtype=np.int32)
+    total = build(near[3] * [1, 1, 1, 0], checked)  # the same ellipse, not marked exact
+    direct = np.zeros_like(checked)
+    assert build(near[3], direct) == total > 100
+    np.testing.assert_array_equal(direct[:, :total], checked[:, :total])
+    for room in (total // 3, total - 1):
+        store = np.full((2, room + 64), -7, dtype=np.int32)
+        assert build(near[3], store[:, :room]) == total
+        np.testing.assert_array_equal(store[:, :room], checked[:, :room])
+        assert np.all(store[:, room:] == -7)
 
 
 @pytest.mark.parametrize("parts", [1, 3])

@@ -31,6 +31,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from numba.cpython.unsafe.numbers import trailing_zeros
+
 from .grid import BLOCK, KERNEL_OPTIONS, pop_lowest
 
 EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
@@ -59,6 +61,10 @@ NEAR = 5
 SPARSE_PAIRS = 64
 """when no part pushed more pairs than this, only their ends are moved, not
 every point: see :func:`apply_sparse`"""
+
+DENSE_LIST = 0.4
+"""pairs per point of the last list above which the list build no longer tests a
+chunk's bits for none before writing them: see :func:`query_points`"""
 
 QUERY_SHARES = 4
 """shares of the list build per thread, where there is more than one"""
@@ -178,7 +184,7 @@ def _close_at_rest_inside(rest: np.ndarray, cols: int, reach: float, metric: np.
     while True:
         # radius reach and no rest test: every pair closer than reach, each once
         found = build_list(P, rest, 0.0, reach, np.inf, *x.buffers()[:5], x.pairs, cols, x.near_table,
-                           x.near_metric, x.candidates)
+                           x.near_metric)
         if found <= x.pairs.shape[1]:
             break
         x.pairs = np.zeros((2, 2 * found), dtype=np.int32)
@@ -199,11 +205,10 @@ class NeighbourList:
         n = num_points
         self.cell_start = np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64)
         self.cell_of = np.zeros(n, dtype=np.int64)
-        self.order = np.zeros(n, dtype=np.int64)
+        self.order = np.zeros(n + 1, dtype=np.int64)  # one past the points: see _put
         self.slot = np.zeros(n, dtype=np.int64)
         # position, rest position, grid row and column per slot
         self.sorted_pos = np.zeros((8, n + PAD))
-        self.candidates = np.zeros((parts, n), dtype=np.int64)  # slots of one point's candidates
         self.reference = np.zeros((3, n))
         self.centres = np.zeros((2, 3))  # of the drift test: see _drifted
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
@@ -223,7 +228,7 @@ class NeighbourList:
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
-                self.candidates, self.reference, self.centres, self.pairs, self.push, self.count, self.meta,
+                self.reference, self.centres, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
                 self.near_masks, self.touched, self.tally)
 
@@ -335,7 +340,7 @@ def _bounds(P, lo, hi):
 
 @njit(**EXACT_OPTIONS)
 def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, sorted_pos, pairs,
-               cols, near_table, near_metric, candidates):
+               cols, near_table, near_metric, sparse=True):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
     are, which may exceed the capacity: then only the first ones were stored.
@@ -343,34 +348,41 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     ``near_table[dr, di + NEAR]`` is set: the near stencil checks them.
     Returns -1 when the points are not finite or spread wider than ``span``.
     ``near_metric`` is the :func:`grid_metric` of the offsets the list never
-    holds; ``candidates`` is the (parts, N) int64 scratch of :func:`query_points`.
+    holds.
     """
     grid = _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
     if grid[3] == 0.0:
         return -1
     return query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table,
-                        near_metric, candidates[0], 0, P.shape[1], pairs, 0, pairs.shape[1])
+                        near_metric, 0, P.shape[1], pairs, 0, pairs.shape[1], sparse)
 
 
 @njit(**EXACT_OPTIONS)
 def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table, near_metric,
-                 candidates, first, stop, pairs, base, capacity):
+                 first, stop, pairs, base, capacity, sparse):
     """The list pairs (pk, q) of points ``first <= pk < stop`` from the sorted
     cells of :func:`_sort_into_cells` into ``pairs[:, base:base + capacity]``;
     returns how many there are, which may exceed the capacity.
 
-    Each point first tests its candidates against the radius, NARROW or WIDE
-    slots at a time, in a loop that LLVM vectorises and that only sets a bit
-    per candidate inside; then only those (one in eight on a piled-up cloth)
-    are collected into ``candidates`` and go through the other tests. A range
-    of a 50x50 cloth holds a few slots, and a loop over exactly those ended
-    in a mispredicted branch per range: the fixed width took a quarter to a
-    third less time. Slots past the range are read (``sorted_pos`` is padded)
-    and masked out. The first test also drops the grid neighbours that
-    ``near_metric`` (:func:`grid_metric`) marks as never listed, from their
-    rows and columns. The candidate ranges are walked with unsigned indices:
-    with signed ones numba adds a negative-index wraparound that turns the
-    loads into gathers. ``candidates`` is (N,) int64 scratch.
+    Each row of cells a point searches is tested NARROW or WIDE slots at a
+    time, in a loop that LLVM vectorises and that only sets a bit per
+    candidate inside the radius and not one of the grid neighbours that
+    ``near_metric`` (:func:`grid_metric`) marks as never listed. A range of a
+    50x50 cloth holds a few slots, and a loop over exactly those ended in a
+    mispredicted branch per range: the fixed width took a quarter to a third
+    less time. Slots past the range are read (``sorted_pos`` is padded) and
+    masked out.
+
+    Where the rest layout lets no further test reject a pair (``near_metric``
+    exact) and the pairs array has room, the bits go straight into it
+    (:func:`_put`), without a branch per bit; otherwise each goes through the
+    exact tests and the capacity check (:func:`_put_checked`). A ``sparse``
+    build (a hanging cloth, few pairs per point) first skips the chunks with
+    no bit, a branch that is then nearly always right; in a crowded one it
+    was wrong about as often as not, and leaving it out made the build a
+    fifth faster on a piled-up cloth. The ranges are walked with unsigned
+    indices: with signed ones numba adds a negative-index wraparound that
+    turns the loads into gathers.
     """
     size = grid[3]
     x0, y0, z0, inv = grid[0], grid[1], grid[2], 1.0 / size
@@ -379,18 +391,14 @@ def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_
     radius2 = radius * radius
     reach2 = reach * reach
     sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
-    rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
     grid_row, grid_col = sorted_pos[6], sorted_pos[7]
-    wr2, wc2, rho2 = near_metric[0], near_metric[1], near_metric[2]
     exact = near_metric[3] != 0.0
-    near = candidates
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
     for pk in range(first, stop):
         k = slot[pk]
         x, y, z = sx[k], sy[k], sz[k]
-        ax, ay, az = rx[k], ry[k], rz[k]
         gr, gc = grid_row[k], grid_col[k]
         # cells the search sphere overlaps; floor, then clamp into the grid
         ix0 = max(np.int64(np.floor((x - radius - x0) * inv_x)), 0)
@@ -403,55 +411,51 @@ def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_
         # cells before the point's own row hold none and are skipped
         own_y = max(min(np.int64((y - y0) * inv), ny - 1), 0)
         own_z = max(min(np.int64((z - z0) * inv), nz - 1), 0)
-        inside = 0
         for iz in range(max(iz0, own_z), iz1 + 1):
             for iy in range(max(iy0, own_y) if iz == own_z else iy0, iy1 + 1):
                 row = (iz * ny + iy) * nx
                 lo = max(cell_start[row + ix0], k + 1)
                 hi = cell_start[row + ix1 + 1]
+                direct = exact and found + (hi - lo) + 2 <= capacity
                 if hi - lo <= LONG_RANGE:
-                    for at in range(lo, hi, NARROW):
-                        inside = _collect(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi,
-                                          NARROW, radius2, wr2, wc2, rho2, near, inside)
+                    found = _scan(x, y, z, gr, gc, sorted_pos, lo, hi, NARROW, radius2, near_metric, sparse,
+                                  direct, order, pairs, pk, base, found, capacity, exact, k, reach2,
+                                  near_table)
                 else:
-                    for at in range(lo, hi, WIDE):
-                        inside = _collect(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi,
-                                          WIDE, radius2, wr2, wc2, rho2, near, inside)
-        if exact:  # the tests below can reject nothing here: see grid_metric
-            for j in range(inside):
-                if found < capacity:
-                    pairs[0, base + found] = pk
-                    pairs[1, base + found] = order[np.uint64(near[j])]
-                found += 1
-            continue
-        for j in range(inside):
-            q = np.uint64(near[j])
-            ex = ax - rx[q]
-            ey = ay - ry[q]
-            ez = az - rz[q]
-            if ex * ex + ey * ey + ez * ez < reach2:
-                continue
-            dr = np.int64(grid_row[q] - gr)
-            di = np.int64(grid_col[q] - gc)
-            if dr < 0 or (dr == 0 and di < 0):
-                dr, di = -dr, -di
-            if dr <= NEAR and abs(di) <= NEAR and near_table[dr, di + NEAR] != 0:
-                continue
-            pq = order[q]
-            if found < capacity:
-                pairs[0, base + found] = pk
-                pairs[1, base + found] = pq
-            found += 1
+                    found = _scan(x, y, z, gr, gc, sorted_pos, lo, hi, WIDE, radius2, near_metric, sparse,
+                                  direct, order, pairs, pk, base, found, capacity, exact, k, reach2,
+                                  near_table)
     return found
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _collect(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radius2, wr2, wc2, rho2,
-             near, inside):
-    """Append to ``near[inside:]`` the slots ``at <= q < min(at + width, hi)`` that lie
-    inside the radius of the point at (x, y, z), grid row gr and column gc, and
-    are not grid neighbours inside the ellipse of :func:`grid_metric`; returns
-    the new length. ``width`` (at most 64) slots are tested, whatever ``hi``."""
+def _scan(x, y, z, gr, gc, sorted_pos, lo, hi, width, radius2, near_metric, sparse, direct, order, pairs,
+          pk, base, found, capacity, exact, k, reach2, near_table):
+    """The pairs of the point at (x, y, z), grid row gr and column gc, in slot k
+    (point pk) with slots ``lo:hi``, ``width`` at a time, appended after the
+    ``found`` ones; returns the new count. See :func:`query_points`."""
+    sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
+    grid_row, grid_col = sorted_pos[6], sorted_pos[7]
+    wr2, wc2, rho2 = near_metric[0], near_metric[1], near_metric[2]
+    for at in range(lo, hi, width):
+        mask = _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radius2, wr2,
+                       wc2, rho2)
+        if sparse and mask == 0:
+            continue
+        if direct:
+            found = _put(mask, at, order, pairs, pk, base + found) - base
+        else:
+            found = _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, sorted_pos,
+                                 k, reach2, near_table)
+    return found
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radius2, wr2, wc2, rho2):
+    """A bit per slot ``at <= q < min(at + width, hi)`` that lies inside the radius of
+    the point at (x, y, z), grid row gr and column gc, and is not a grid
+    neighbour inside the ellipse of :func:`grid_metric`. ``width`` (at most
+    64) slots are read, whatever ``hi``."""
     start = np.uint64(at)
     stop = np.uint64(hi)
     mask = np.uint64(0)  # an or of shifted selects vectorises
@@ -464,11 +468,63 @@ def _collect(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, rad
         ec = grid_col[q] - gc
         ok = (dx * dx + dy * dy + dz * dz < radius2) & (er * er * wr2 + ec * ec * wc2 >= rho2) & (q < stop)
         mask |= np.uint64(1 if ok else 0) << np.uint64(j)
+    return mask
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _put(mask, at, order, pairs, pk, end):
+    """Append the pairs (pk, point in slot ``at + j``) of the bits j of ``mask`` at
+    ``pairs[:, end:]``; returns the new end. The first two are written
+    whether their bit is there or not, and counted only if it is: most masks
+    hold none, one or two bits, and a loop over them ended in a mispredicted
+    branch. The caller leaves room for two pairs more than the bits, and
+    ``order`` one slot past the points (an empty mask reads slot ``at``)."""
+    j = np.int64(trailing_zeros(mask)) & 63
+    pairs[0, end] = pk
+    pairs[1, end] = order[np.uint64(at + j)]
+    end += 1 if mask != 0 else 0
+    mask &= mask - np.uint64(1)
+    j = np.int64(trailing_zeros(mask)) & 63
+    pairs[0, end] = pk
+    pairs[1, end] = order[np.uint64(at + j)]
+    end += 1 if mask != 0 else 0
+    mask &= mask - np.uint64(1)
     while mask != 0:
         j, mask = pop_lowest(mask)
-        near[inside] = at + j
-        inside += 1
-    return inside
+        pairs[0, end] = pk
+        pairs[1, end] = order[np.uint64(at + j)]
+        end += 1
+    return end
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, sorted_pos, k, reach2,
+                 near_table):
+    """:func:`_put` one bit at a time, each pair stored while there is room and,
+    unless ``exact``, only if it was not closer than the reach at rest and
+    is not in the near stencil; returns the new count."""
+    rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
+    grid_row, grid_col = sorted_pos[6], sorted_pos[7]
+    while mask != 0:
+        j, mask = pop_lowest(mask)
+        q = np.uint64(at + j)
+        if not exact:
+            ex = rx[k] - rx[q]
+            ey = ry[k] - ry[q]
+            ez = rz[k] - rz[q]
+            if ex * ex + ey * ey + ez * ez < reach2:
+                continue
+            dr = np.int64(grid_row[q] - grid_row[k])
+            di = np.int64(grid_col[q] - grid_col[k])
+            if dr < 0 or (dr == 0 and di < 0):
+                dr, di = -dr, -di
+            if dr <= NEAR and abs(di) <= NEAR and near_table[dr, di + NEAR] != 0:
+                continue
+        if found < capacity:
+            pairs[0, base + found] = pk
+            pairs[1, base + found] = order[q]
+        found += 1
+    return found
 
 
 @njit(cache=True, inline="always")
@@ -557,7 +613,7 @@ def _outside_both(P, reference, skin, centres):
 
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
-                 sorted_pos, candidates, reference, centres, pairs, push, count, meta, near_offset,
+                 sorted_pos, reference, centres, pairs, push, count, meta, near_offset,
                  near_weight, near_table, near_metric, near_masks, touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
@@ -589,13 +645,14 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
         # cost of a share depends on how crowded its part of the cloth is
         shares = tally.shape[0]
         size = pairs.shape[1] // shares
+        sparse = meta[PAIRS] < DENSE_LIST * n  # the last list's density foretells this one's
         while True:  # once more with room for twice the largest share when one overflowed
             for t in prange(parts):
                 for j in range(t, shares, parts):
                     lo, hi = part_range(n, shares, j)
                     tally[j, 0] = query_points(grid, reach, radius, cell_start, slot, order,
-                                               sorted_pos, near_table, near_metric, candidates[t],
-                                               lo, hi, pairs, j * size, size)
+                                               sorted_pos, near_table, near_metric, lo, hi, pairs,
+                                               j * size, size, sparse)
             most = 0
             for j in range(shares):
                 most = max(most, tally[j, 0])
