@@ -62,6 +62,10 @@ SPARSE_PAIRS = 64
 """when no part pushed more pairs than this, only their ends are moved, not
 every point: see :func:`apply_sparse`"""
 
+METRIC_GAP = 1e-4
+"""least relative gap between the grid offsets inside and outside the ellipse of
+:func:`grid_metric`: single precision tells them apart to about 1e-7"""
+
 DENSE_LIST = 0.4
 """pairs per point of the last list above which the list build no longer tests a
 chunk's bits for none before writing them: see :func:`query_points`"""
@@ -144,8 +148,10 @@ def grid_metric(rest: np.ndarray, rows: int, cols: int, never: np.ndarray,
     from their grid rows and columns, instead of sending them through the
     exact tests, which reject them anyway: on a 100x100 cloth they were over
     half the candidates inside the radius and the build took 13% longer.
-    rho is the nominal distance of the nearest offset not marked, so the
-    ellipse holds only marked offsets; zeros drop nothing.
+    rho² lies halfway between the nominal squared distances of the farthest
+    marked offset inside it and the nearest offset not marked, so the ellipse
+    holds only marked offsets, also when the build tests it in single
+    precision; zeros drop nothing.
 
     ``exact`` is 1 when the ellipse holds every marked offset and every pair
     closer than ``reach`` at rest: the exact tests can then reject nothing
@@ -161,15 +167,21 @@ def grid_metric(rest: np.ndarray, rows: int, cols: int, never: np.ndarray,
     right, down = np.flatnonzero(i + 1 < cols), np.flatnonzero(r + 1 < rows)
     wc2 = np.median(np.sum((rest[right + 1] - rest[right]) ** 2, axis=1))
     wr2 = np.median(np.sum((rest[down + cols] - rest[down]) ** 2, axis=1))
-    rho2 = np.inf
+    unmarked = np.inf
     for dr in range(NEAR + 2):  # one ring past the table: no offset there is marked
         for di in range(-NEAR - 1, NEAR + 2):
             if dr == 0 and di <= 0:
                 continue
             if not (dr <= NEAR and abs(di) <= NEAR and never[dr, di + NEAR]):
-                rho2 = min(rho2, dr * dr * wr2 + di * di * wc2)
+                unmarked = min(unmarked, dr * dr * wr2 + di * di * wc2)
     dr, di = np.nonzero(never)
-    marked_inside = bool(np.all(dr * dr * wr2 + (di - NEAR) ** 2 * wc2 < rho2))
+    marked = dr * dr * wr2 + (di - NEAR) ** 2 * wc2
+    below = marked[marked < unmarked]
+    marked_below = below.max() if len(below) else 0.0
+    if unmarked - marked_below < METRIC_GAP * unmarked:
+        return metric  # no room for single precision between them: drop nothing
+    rho2 = 0.5 * (marked_below + unmarked)
+    marked_inside = bool(np.all(marked < rho2))
     metric[:3] = wr2, wc2, rho2
     metric[3] = marked_inside and _close_at_rest_inside(rest, cols, reach, metric)
     return metric
@@ -207,8 +219,8 @@ class NeighbourList:
         self.cell_of = np.zeros(n, dtype=np.int64)
         self.order = np.zeros(n + 1, dtype=np.int64)  # one past the points: see _put
         self.slot = np.zeros(n, dtype=np.int64)
-        # position, rest position, grid row and column per slot
-        self.sorted_pos = np.zeros((8, n + PAD))
+        # per slot: position from the grid's corner, grid row and column, in single precision
+        self.sorted_pos = np.zeros((5, n + PAD), dtype=np.float32)
         self.reference = np.zeros((3, n))
         self.centres = np.zeros((2, 3))  # of the drift test: see _drifted
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
@@ -238,7 +250,7 @@ class NeighbourList:
 
 
 @njit(**EXACT_OPTIONS)
-def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos):
+def _sort_into_cells(P, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos):
     """Counting-sort the points into a dense grid of cells over their bounding box.
 
     Cells are ``CELL_FACTOR * radius`` wide where the buffer allows, coarser where the
@@ -247,8 +259,10 @@ def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, sl
     to each other in the sorted order and a query reads a row of them as one
     range. Afterwards cell c holds slots ``cell_start[c] : cell_start[c+1]``,
     ``order[k]`` is the point in slot k, ``slot`` the inverse, and the point's
-    position, rest position and row and column on a grid of ``cols`` columns
-    are copied to column k of ``sorted_pos`` (8, N + PAD).
+    position from the grid's corner and its row and column on a grid of
+    ``cols`` columns are copied to column k of ``sorted_pos`` (5, N + PAD),
+    in single precision: the query's first test reads them, and in single
+    precision it does twice as many at once (see :func:`query_points`).
 
     Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
     the points are not finite or spread wider than ``span``: no list then.
@@ -300,10 +314,9 @@ def _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, sl
         k = slot[p]
         order[k] = p
         for c in range(3):
-            sorted_pos[c, k] = P[c, p]
-            sorted_pos[3 + c, k] = rest[p, c]
-        sorted_pos[6, k] = row
-        sorted_pos[7, k] = col
+            sorted_pos[c, k] = np.float32(P[c, p] - lo[c])
+        sorted_pos[3, k] = row
+        sorted_pos[4, k] = col
         col += 1.0
         if col == cols:
             row, col = row + 1.0, 0.0
@@ -350,19 +363,21 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     ``near_metric`` is the :func:`grid_metric` of the offsets the list never
     holds.
     """
-    grid = _sort_into_cells(P, rest, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
+    grid = _sort_into_cells(P, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
     if grid[3] == 0.0:
         return -1
-    return query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table,
+    return query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_pos, near_table,
                         near_metric, 0, P.shape[1], pairs, 0, pairs.shape[1], sparse)
 
 
 @njit(**EXACT_OPTIONS)
-def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_table, near_metric,
-                 first, stop, pairs, base, capacity, sparse):
+def query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_pos, near_table,
+                 near_metric, first, stop, pairs, base, capacity, sparse):
     """The list pairs (pk, q) of points ``first <= pk < stop`` from the sorted
     cells of :func:`_sort_into_cells` into ``pairs[:, base:base + capacity]``;
-    returns how many there are, which may exceed the capacity.
+    returns how many there are, which may exceed the capacity. P (3, N) and
+    rest (N, 3) are the positions the cells were sorted from and the rest
+    layout.
 
     Each row of cells a point searches is tested NARROW or WIDE slots at a
     time, in a loop that LLVM vectorises and that only sets a bit per
@@ -371,7 +386,10 @@ def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_
     50x50 cloth holds a few slots, and a loop over exactly those ended in a
     mispredicted branch per range: the fixed width took a quarter to a third
     less time. Slots past the range are read (``sorted_pos`` is padded) and
-    masked out.
+    masked out. The test runs in single precision, on positions from the
+    grid's corner, with the radius widened by more than the rounding of
+    either end can move them: no pair inside the radius is missed, and a
+    pair a hair outside may be listed, which only costs its check.
 
     Where the rest layout lets no further test reject a pair (``near_metric``
     exact) and the pairs array has room, the bits go straight into it
@@ -388,18 +406,20 @@ def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_
     x0, y0, z0, inv = grid[0], grid[1], grid[2], 1.0 / size
     inv_x = X_SPLIT * inv
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
-    radius2 = radius * radius
+    # each coordinate from the corner is rounded by at most extent * 2**-24
+    extent = max(nx * size / X_SPLIT, ny * size, nz * size)
+    wide = radius * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
+    metric = np.empty(4, dtype=np.float32)
+    metric[0] = wide * wide
+    metric[1], metric[2], metric[3] = near_metric[0], near_metric[1], near_metric[2]
     reach2 = reach * reach
-    sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
-    grid_row, grid_col = sorted_pos[6], sorted_pos[7]
     exact = near_metric[3] != 0.0
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
     for pk in range(first, stop):
         k = slot[pk]
-        x, y, z = sx[k], sy[k], sz[k]
-        gr, gc = grid_row[k], grid_col[k]
+        x, y, z = P[0, pk], P[1, pk], P[2, pk]
         # cells the search sphere overlaps; floor, then clamp into the grid
         ix0 = max(np.int64(np.floor((x - radius - x0) * inv_x)), 0)
         ix1 = min(np.int64((x + radius - x0) * inv_x), nx - 1)
@@ -418,25 +438,25 @@ def query_points(grid, reach, radius, cell_start, slot, order, sorted_pos, near_
                 hi = cell_start[row + ix1 + 1]
                 direct = exact and found + (hi - lo) + 2 <= capacity
                 if hi - lo <= LONG_RANGE:
-                    found = _scan(x, y, z, gr, gc, sorted_pos, lo, hi, NARROW, radius2, near_metric, sparse,
-                                  direct, order, pairs, pk, base, found, capacity, exact, k, reach2,
-                                  near_table)
+                    found = _scan(sorted_pos, k, lo, hi, NARROW, metric, sparse, direct, order, pairs,
+                                  pk, base, found, capacity, exact, rest, reach2, near_table)
                 else:
-                    found = _scan(x, y, z, gr, gc, sorted_pos, lo, hi, WIDE, radius2, near_metric, sparse,
-                                  direct, order, pairs, pk, base, found, capacity, exact, k, reach2,
-                                  near_table)
+                    found = _scan(sorted_pos, k, lo, hi, WIDE, metric, sparse, direct, order, pairs,
+                                  pk, base, found, capacity, exact, rest, reach2, near_table)
     return found
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _scan(x, y, z, gr, gc, sorted_pos, lo, hi, width, radius2, near_metric, sparse, direct, order, pairs,
-          pk, base, found, capacity, exact, k, reach2, near_table):
-    """The pairs of the point at (x, y, z), grid row gr and column gc, in slot k
-    (point pk) with slots ``lo:hi``, ``width`` at a time, appended after the
-    ``found`` ones; returns the new count. See :func:`query_points`."""
+def _scan(sorted_pos, k, lo, hi, width, metric, sparse, direct, order, pairs, pk, base, found, capacity,
+          exact, rest, reach2, near_table):
+    """The pairs of the point in slot k (point pk) with slots ``lo:hi``, ``width`` at
+    a time, appended after the ``found`` ones; returns the new count. See
+    :func:`query_points`; ``metric`` is (radius², the :func:`grid_metric`) in
+    single precision."""
     sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
-    grid_row, grid_col = sorted_pos[6], sorted_pos[7]
-    wr2, wc2, rho2 = near_metric[0], near_metric[1], near_metric[2]
+    grid_row, grid_col = sorted_pos[3], sorted_pos[4]
+    x, y, z, gr, gc = sx[k], sy[k], sz[k], grid_row[k], grid_col[k]
+    radius2, wr2, wc2, rho2 = metric[0], metric[1], metric[2], metric[3]
     for at in range(lo, hi, width):
         mask = _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radius2, wr2,
                        wc2, rho2)
@@ -445,8 +465,8 @@ def _scan(x, y, z, gr, gc, sorted_pos, lo, hi, width, radius2, near_metric, spar
         if direct:
             found = _put(mask, at, order, pairs, pk, base + found) - base
         else:
-            found = _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, sorted_pos,
-                                 k, reach2, near_table)
+            found = _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, rest,
+                                 grid_row, grid_col, k, reach2, near_table)
     return found
 
 
@@ -455,9 +475,8 @@ def _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radi
     """A bit per slot ``at <= q < min(at + width, hi)`` that lies inside the radius of
     the point at (x, y, z), grid row gr and column gc, and is not a grid
     neighbour inside the ellipse of :func:`grid_metric`. ``width`` (at most
-    64) slots are read, whatever ``hi``."""
+    64) slots are read, whatever ``hi``. All in single precision."""
     start = np.uint64(at)
-    stop = np.uint64(hi)
     mask = np.uint64(0)  # an or of shifted selects vectorises
     for j in range(width):
         q = start + np.uint64(j)
@@ -466,9 +485,12 @@ def _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radi
         dz = z - sz[q]
         er = grid_row[q] - gr
         ec = grid_col[q] - gc
-        ok = (dx * dx + dy * dy + dz * dz < radius2) & (er * er * wr2 + ec * ec * wc2 >= rho2) & (q < stop)
+        ok = (dx * dx + dy * dy + dz * dz < radius2) & (er * er * wr2 + ec * ec * wc2 >= rho2)
         mask |= np.uint64(1 if ok else 0) << np.uint64(j)
-    return mask
+    # the slots before hi, masked after the loop: a 64-bit comparison in it
+    # would halve the single-precision lanes
+    valid = np.uint64(min(hi - at, width))
+    return mask & ((np.uint64(2) << (valid - np.uint64(1))) - np.uint64(1))
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -498,20 +520,19 @@ def _put(mask, at, order, pairs, pk, end):
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, sorted_pos, k, reach2,
-                 near_table):
+def _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, rest, grid_row, grid_col, k,
+                 reach2, near_table):
     """:func:`_put` one bit at a time, each pair stored while there is room and,
     unless ``exact``, only if it was not closer than the reach at rest and
     is not in the near stencil; returns the new count."""
-    rx, ry, rz = sorted_pos[3], sorted_pos[4], sorted_pos[5]
-    grid_row, grid_col = sorted_pos[6], sorted_pos[7]
     while mask != 0:
         j, mask = pop_lowest(mask)
         q = np.uint64(at + j)
+        pq = order[q]
         if not exact:
-            ex = rx[k] - rx[q]
-            ey = ry[k] - ry[q]
-            ez = rz[k] - rz[q]
+            ex = rest[pk, 0] - rest[pq, 0]
+            ey = rest[pk, 1] - rest[pq, 1]
+            ez = rest[pk, 2] - rest[pq, 2]
             if ex * ex + ey * ey + ez * ez < reach2:
                 continue
             dr = np.int64(grid_row[q] - grid_row[k])
@@ -522,7 +543,7 @@ def _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, sorte
                 continue
         if found < capacity:
             pairs[0, base + found] = pk
-            pairs[1, base + found] = order[q]
+            pairs[1, base + found] = pq
         found += 1
     return found
 
@@ -636,7 +657,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     skin = SKIN_FACTOR * reach
     if meta[VALID] == 0 or _drifted(P, reference, skin, centres):
         radius = reach + skin
-        grid = _sort_into_cells(P, rest, radius, span, meta[COLS], cell_start, cell_of, order, slot,
+        grid = _sort_into_cells(P, radius, span, meta[COLS], cell_start, cell_of, order, slot,
                                 sorted_pos)
         if grid[3] == 0.0:
             meta[VALID] = 0
@@ -650,9 +671,9 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
             for t in prange(parts):
                 for j in range(t, shares, parts):
                     lo, hi = part_range(n, shares, j)
-                    tally[j, 0] = query_points(grid, reach, radius, cell_start, slot, order,
-                                               sorted_pos, near_table, near_metric, lo, hi, pairs,
-                                               j * size, size, sparse)
+                    tally[j, 0] = query_points(grid, reach, radius, P, rest, cell_start, slot,
+                                               order, sorted_pos, near_table, near_metric, lo, hi,
+                                               pairs, j * size, size, sparse)
             most = 0
             for j in range(shares):
                 most = max(most, tally[j, 0])
