@@ -520,6 +520,11 @@ def test_few_and_many_pushes_move_points_alike(points, parts):
     assert not x.push.any() and not x.count.any()
 
 
+def sorted_pairs(pairs):
+    """(2, K) pairs in lexicographic order: builds may list them in any order"""
+    return pairs[:, np.lexsort(pairs[::-1])]
+
+
 def folded_cloth(n, ratio, squeeze):
     """(model, near stencil, positions) of an n x n cloth with thickness ratio/(n-1),
     squeezed, its far half folded back over the near half, jittered"""
@@ -592,6 +597,33 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
                                      x.pairs, n, x.near_table, x.near_metric))
         assert counts[1] > counts[0]
     assert grid_metric(rest, n, n, np.zeros((6, 11), bool), reach)[3] == 0.0
+
+
+@pytest.mark.parametrize("parts", [1, 2])
+def test_first_pass_over_a_new_list_gathers_its_pushed_pairs_in_front(parts):
+    """the pass right after a build moves the pairs it pushes to the front of each
+    part's range, keeping every pair of the list; later passes leave it be"""
+    from clothsim.solver.self_collide import PAIRS
+    m, near, pos = folded_cloth(40, 0.75, 0.9)
+    reach = 2 * m.thickness
+    x = NeighbourList(m.num_points, 40, near, parts)
+    fresh = np.zeros((2, 40 * m.num_points), dtype=np.int32)
+    built = build_list(planes(pos), m.rest_positions, reach, 1.5 * reach, np.inf, *x.buffers()[:5], fresh,
+                       40, x.near_table, x.near_metric)
+    free = np.ones(m.num_points)
+    x.pairs, _ = self_collide(planes(pos), m.rest_positions, free, m.thickness, 3, np.inf, *x.buffers())
+    listed = int(x.meta[PAIRS])
+    assert listed == built
+    pairs = x.pairs[:, :listed].copy()
+    np.testing.assert_array_equal(sorted_pairs(pairs), sorted_pairs(fresh[:, :built]))
+    d = np.linalg.norm(pos[pairs[0]] - pos[pairs[1]], axis=1)
+    for t in range(parts):
+        touching = d[t * listed // parts:(t + 1) * listed // parts] < reach
+        assert 0 < touching.sum() < len(touching)
+        assert not np.any(np.diff(touching.astype(int)) > 0)  # pushed first, then the others
+    P = planes(pos)
+    self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf, *x.buffers())  # the list holds
+    np.testing.assert_array_equal(x.pairs[:, :listed], pairs)
 
 
 @pytest.mark.parametrize("sparse", [True, False])
