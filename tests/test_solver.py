@@ -336,16 +336,17 @@ def brute_force_pairs(pos, rest, reach):
     return int(np.triu((d < reach) & (r >= reach) & (d > 0), 1).sum())
 
 
-@pytest.mark.parametrize("parts", [1, 2])
-def test_self_collision_matches_brute_force_as_points_move(parts):
+@pytest.mark.parametrize("parts,skin", [(1, 0.5), (2, 0.5), (1, 0.75)])
+def test_self_collision_matches_brute_force_as_points_move(parts, skin):
     """the neighbour list finds exactly the colliding pairs a fresh search finds, call after
     call while the points drift, jump and move together, reusing its buffers; also
-    built in parts, whose shares of the list are closed up into one"""
+    built in parts, whose shares of the list are closed up into one, and with
+    the wider skin of a coarse cloth"""
     rng = np.random.default_rng(7)
     n, t = 400, 0.02
     pos = rng.uniform(0, 0.3, size=(n, 3))
     rest = rng.uniform(0, 3, size=(n, 3))
-    lists = NeighbourList(n, parts=parts)
+    lists = NeighbourList(n, parts=parts, skin=skin)
     lists.pairs = np.zeros((2, 8), dtype=np.int32)  # too small: the kernel must grow it
     for step in range(40):
         expected = brute_force_pairs(pos, rest, 2 * t)
@@ -356,6 +357,18 @@ def test_self_collision_matches_brute_force_as_points_move(parts):
         if step % 10 == 9:
             pos[rng.integers(n)] = rng.uniform(0, 0.3, 3)  # one point jumps
     assert 1 < lists.rebuilds < 40
+
+
+def test_coarse_cloths_take_the_wider_skin():
+    """a cloth whose wider list radius takes in only its rows, columns and diagonals
+    gets the wider skin; finer cloths, whose stencil it would fill with rings
+    of grid neighbours, keep the narrow one"""
+    from clothsim.solver.self_collide import COARSE_SKIN, SKIN_FACTOR, skin_factor
+    for n, expected in [(30, COARSE_SKIN), (50, COARSE_SKIN), (70, SKIN_FACTOR), (100, SKIN_FACTOR)]:
+        spec = ClothSpec(width=1.0, height=1.0, num_width_points=n, num_height_points=n,
+                         thickness=0.0095, orientation=0, pinned=[])
+        m = build_model(spec)
+        assert skin_factor(m.rest_positions, n, n, m.thickness) == expected, n
 
 
 def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():

@@ -15,7 +15,7 @@ from .mesh import compute_normals
 from .model import ClothModel, build_model
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
 from .solver.grid import BLOCK, SET_KIND, build_stencil, force_buffer
-from .solver.self_collide import NeighbourList, near_stencil
+from .solver.self_collide import NeighbourList, near_stencil, skin_factor
 
 RUNAWAY_FACTOR = 100.0
 """a point farther than this many cloth sizes from the start means the run blew up"""
@@ -93,9 +93,9 @@ class _Scratch:
         self.planes = np.zeros((2, 3, n))  # positions, last positions
         self.forces = force_buffer(self.stencil, n)
         self.masks = np.zeros((parts, 2, n // BLOCK + 2), dtype=np.uint64)  # Provot scratch
-        self.lists = NeighbourList(n, model.num_width_points, near_stencil(
-            model.rest_positions, model.num_height_points, model.num_width_points, model.thickness),
-            parts)
+        grid = (model.rest_positions, model.num_height_points, model.num_width_points, model.thickness)
+        skin = skin_factor(*grid)
+        self.lists = NeighbourList(n, model.num_width_points, near_stencil(*grid, skin), parts, skin)
 
 
 @dataclass
