@@ -102,6 +102,16 @@ PAIRS, VALID, REBUILDS, COLS, SKIN = 0, 1, 2, 3, 4
 META_SIZE = 5
 
 
+def grid_spacing(rest: np.ndarray, rows: int, cols: int) -> tuple[float, float]:
+    """The median distances at rest between neighbours along a column (row
+    spacing) and along a row (column spacing); at least 2 rows and columns."""
+    r, i = np.divmod(np.arange(rows * cols), cols)
+    right, down = np.flatnonzero(i + 1 < cols), np.flatnonzero(r + 1 < rows)
+    wc = np.median(np.linalg.norm(rest[right + 1] - rest[right], axis=1))
+    wr = np.median(np.linalg.norm(rest[down + cols] - rest[down], axis=1))
+    return float(wr), float(wc)
+
+
 def skin_factor(rest: np.ndarray, rows: int, cols: int, thickness: float) -> float:
     """The list's skin for this cloth, as a fraction of the reach.
 
@@ -118,10 +128,7 @@ def skin_factor(rest: np.ndarray, rows: int, cols: int, thickness: float) -> flo
     """
     if rows < 2 or cols < 2:
         return SKIN_FACTOR
-    r, i = np.divmod(np.arange(rows * cols), cols)
-    right, down = np.flatnonzero(i + 1 < cols), np.flatnonzero(r + 1 < rows)
-    wc = np.median(np.linalg.norm(rest[right + 1] - rest[right], axis=1))
-    wr = np.median(np.linalg.norm(rest[down + cols] - rest[down], axis=1))
+    wr, wc = grid_spacing(rest, rows, cols)
     radius = 2.0 * thickness * (1.0 + COARSE_SKIN)
     dr, di = np.meshgrid(np.arange(NEAR + 2), np.arange(-NEAR - 1, NEAR + 2), indexing="ij")
     inside = (np.hypot(dr * wr, di * wc) < radius) & ((dr > 0) | (di > 0))
@@ -198,10 +205,8 @@ def grid_metric(rest: np.ndarray, rows: int, cols: int, never: np.ndarray,
     metric = np.zeros(4)
     if rows < 2 or cols < 2 or not never.any():
         return metric
-    r, i = np.divmod(np.arange(rows * cols), cols)
-    right, down = np.flatnonzero(i + 1 < cols), np.flatnonzero(r + 1 < rows)
-    wc2 = np.median(np.sum((rest[right + 1] - rest[right]) ** 2, axis=1))
-    wr2 = np.median(np.sum((rest[down + cols] - rest[down]) ** 2, axis=1))
+    wr, wc = grid_spacing(rest, rows, cols)
+    wr2, wc2 = wr * wr, wc * wc
     unmarked = np.inf
     for dr in range(NEAR + 2):  # one ring past the table: no offset there is marked
         for di in range(-NEAR - 1, NEAR + 2):
