@@ -451,9 +451,10 @@ def query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_p
     # each coordinate from the corner is rounded by at most extent * 2**-24
     extent = max(nx * size / X_SPLIT, ny * size, nz * size)
     wide = radius * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
-    metric = np.empty(4, dtype=np.float32)
-    metric[0] = wide * wide
-    metric[1], metric[2], metric[3] = near_metric[0], near_metric[1], near_metric[2]
+    f32 = np.float32
+    metric = (f32(wide * wide), f32(near_metric[0]), f32(near_metric[1]), f32(near_metric[2]))
+    sx, sy, sz, grid_row, grid_col = sorted_pos[0], sorted_pos[1], sorted_pos[2], sorted_pos[3], sorted_pos[4]
+    columns = (sx, sy, sz, grid_row, grid_col)
     reach2 = reach * reach
     exact = near_metric[3] != 0.0
     found = 0
@@ -462,6 +463,7 @@ def query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_p
     for pk in range(first, stop):
         k = slot[pk]
         x, y, z = P[0, pk], P[1, pk], P[2, pk]
+        own = (sx[k], sy[k], sz[k], grid_row[k], grid_col[k])
         # cells the search sphere overlaps; floor, then clamp into the grid
         ix0 = max(np.int64(np.floor((x - radius - x0) * inv_x)), 0)
         ix1 = min(np.int64((x + radius - x0) * inv_x), nx - 1)
@@ -480,25 +482,25 @@ def query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_p
                 hi = cell_start[row + ix1 + 1]
                 direct = exact and found + (hi - lo) + 2 <= capacity
                 if hi - lo <= LONG_RANGE:
-                    found = _scan(sorted_pos, k, lo, hi, NARROW, metric, sparse, direct, order, pairs,
+                    found = _scan(own, columns, k, lo, hi, NARROW, metric, sparse, direct, order, pairs,
                                   pk, base, found, capacity, exact, rest, reach2, near_table)
                 else:
-                    found = _scan(sorted_pos, k, lo, hi, WIDE, metric, sparse, direct, order, pairs,
+                    found = _scan(own, columns, k, lo, hi, WIDE, metric, sparse, direct, order, pairs,
                                   pk, base, found, capacity, exact, rest, reach2, near_table)
     return found
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _scan(sorted_pos, k, lo, hi, width, metric, sparse, direct, order, pairs, pk, base, found, capacity,
+def _scan(own, columns, k, lo, hi, width, metric, sparse, direct, order, pairs, pk, base, found, capacity,
           exact, rest, reach2, near_table):
     """The pairs of the point in slot k (point pk) with slots ``lo:hi``, ``width`` at
     a time, appended after the ``found`` ones; returns the new count. See
-    :func:`query_points`; ``metric`` is (radius², the :func:`grid_metric`) in
-    single precision."""
-    sx, sy, sz = sorted_pos[0], sorted_pos[1], sorted_pos[2]
-    grid_row, grid_col = sorted_pos[3], sorted_pos[4]
-    x, y, z, gr, gc = sx[k], sy[k], sz[k], grid_row[k], grid_col[k]
-    radius2, wr2, wc2, rho2 = metric[0], metric[1], metric[2], metric[3]
+    :func:`query_points`: ``own`` is the point's column of ``sorted_pos``,
+    ``columns`` its rows, ``metric`` (radius², the :func:`grid_metric`), all
+    in single precision."""
+    x, y, z, gr, gc = own
+    sx, sy, sz, grid_row, grid_col = columns
+    radius2, wr2, wc2, rho2 = metric
     for at in range(lo, hi, width):
         mask = _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radius2, wr2,
                        wc2, rho2)
