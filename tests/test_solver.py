@@ -13,7 +13,7 @@ from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                   integrate, provot)
-from clothsim.solver.self_collide import (NARROW, SPARSE_PAIRS, WIDE, NeighbourList, _bounds, _drifted, build_list,
+from clothsim.solver.self_collide import (NARROW, SPARSE_PAIRS, WIDE, NeighbourList, _bounds, _drift_bound, build_list,
                                           self_collide)
 
 
@@ -408,26 +408,37 @@ def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
 
 def test_drift_test_bounds_every_pair():
     """the list is kept while no two displacements can differ by the skin, whichever
-    points moved, and given up as soon as two might or a coordinate is not finite"""
+    points moved, and given up as soon as two might or a coordinate is not finite;
+    while it is kept, the bound exceeds every difference of two displacements"""
     rng = np.random.default_rng(2)
     ref = rng.uniform(0, 1, size=(3, 5000))
     skin = 0.01
 
-    def drifted(P):
-        return _drifted(P, ref, skin, np.zeros((2, 3)))  # no centres kept from before
+    def bound(P):
+        return _drift_bound(P, ref, skin, np.zeros((2, 3)))  # no centres kept from before
 
-    assert not drifted(ref + [[0.3], [-0.2], [0.1]])  # all alike: rigid shift
+    def widest(P):  # the largest difference of two displacements, along each axis and overall
+        d = P - ref
+        return np.linalg.norm(d.max(axis=1) - d.min(axis=1))
+
+    assert bound(ref + [[0.3], [-0.2], [0.1]]) <= skin / 16 + 1e-15  # all alike: rigid shift
     part = ref.copy()
     part[1, :500] -= 0.9 * skin  # a tenth falls, the rest stays: pairs differ by 0.9 skin
-    assert not drifted(part)
+    assert 0.9 * skin < bound(part) < skin
     one = ref.copy()
     one[0, 4321] += 1.01 * skin  # a single point, off the sample's stride, moves past the skin
-    assert drifted(one)
+    assert np.isinf(bound(one))
     spread = ref + rng.normal(scale=0.2 * skin, size=ref.shape)
-    assert drifted(spread)  # random motion: some pair may differ by the skin
+    assert np.isinf(bound(spread))  # random motion: some pair may differ by the skin
+    for scale in (0.01, 0.05, 0.1):  # smaller random motion: kept, with a bound above every pair
+        jitter = ref + rng.normal(scale=scale * skin, size=ref.shape) + [[0.02], [0.0], [-0.01]]
+        b = bound(jitter)
+        d = jitter - ref
+        pairwise = np.linalg.norm(d[:, :, None] - d[:, None, :1000], axis=0).max()
+        assert pairwise < b < 2.5 * widest(jitter) + skin / 16, scale
     bad = ref.copy()
     bad[2, 17] = np.nan
-    assert drifted(bad)
+    assert np.isinf(bound(bad))
 
 
 def test_drift_test_keeps_centres_while_they_hold():
@@ -437,22 +448,27 @@ def test_drift_test_keeps_centres_while_they_hold():
     ref = rng.uniform(0, 1, size=(3, 5000))
     skin = 0.01
     centres = np.zeros((2, 3))
+
+    def drifted(P):
+        return np.isinf(_drift_bound(P, ref, skin, centres))
+
     part = ref.copy()
     part[1, :2500] -= 0.6 * skin  # half falls: only the box middle holds
-    assert not _drifted(part, ref, skin, centres)
+    assert not drifted(part)
     np.testing.assert_allclose(centres[1], [0, -0.3 * skin, 0], atol=1e-15)
     chosen = centres.copy()
     part[1, :2500] -= 0.1 * skin  # the old middle still holds (0.4 skin < 0.5 skin)
-    assert not _drifted(part, ref, skin, centres)
+    assert not drifted(part)
     np.testing.assert_array_equal(centres, chosen)
     part += [[0.0], [0.0], [0.4 * skin]]  # all shift: the old centres fail, new ones hold
-    assert not _drifted(part, ref, skin, centres)
+    assert not drifted(part)
     np.testing.assert_allclose(centres[1], [0, -0.35 * skin, 0.4 * skin], atol=1e-15)
     part[1, :2500] -= 0.4 * skin  # the halves now differ by 1.1 skin: no centre holds
-    assert _drifted(part, ref, skin, centres)
+    assert drifted(part)
     part[1, :2500] += 0.4 * skin
     part[0, 99] = np.nan
-    assert _drifted(part, ref, skin, centres)
+    assert drifted(part)
+
 
 def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():
     """clusters metres apart would need far more cells than the buffer holds: the
@@ -613,30 +629,53 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
 
 
 @pytest.mark.parametrize("parts", [1, 2])
-def test_first_pass_over_a_new_list_gathers_its_pushed_pairs_in_front(parts):
-    """the pass right after a build moves the pairs it pushes to the front of each
-    part's range, keeping every pair of the list; later passes leave it be"""
-    from clothsim.solver.self_collide import PAIRS
+def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
+    """the pass right after a build orders the list by how far past the reach each
+    pair was: the touching pairs first, then buckets of slack, each in the build's
+    order, with their ends noted; every pair of the build stays, and later passes
+    leave the order be"""
+    from clothsim.solver.self_collide import BUCKET, PAIRS, SKIN, SLACK_BUCKETS
     m, near, pos = folded_cloth(40, 0.75, 0.9)
     reach = 2 * m.thickness
-    x = NeighbourList(m.num_points, 40, near, parts)
+    x = NeighbourList(m.num_points, 40, near, parts, skin=0.75)
     fresh = np.zeros((2, 40 * m.num_points), dtype=np.int32)
-    built = build_list(planes(pos), m.rest_positions, reach, 1.5 * reach, np.inf, *x.buffers()[:5], fresh,
-                       40, x.near_table, x.near_metric)
+    built = build_list(planes(pos), m.rest_positions, reach, 1.75 * reach, np.inf, *x.buffers()[:5],
+                       fresh, 40, x.near_table, x.near_metric)
     free = np.ones(m.num_points)
     x.pairs, _ = self_collide(planes(pos), m.rest_positions, free, m.thickness, 3, np.inf, *x.buffers())
     listed = int(x.meta[PAIRS])
     assert listed == built
     pairs = x.pairs[:, :listed].copy()
-    np.testing.assert_array_equal(sorted_pairs(pairs), sorted_pairs(fresh[:, :built]))
     d = np.linalg.norm(pos[pairs[0]] - pos[pairs[1]], axis=1)
-    for t in range(parts):
-        touching = d[t * listed // parts:(t + 1) * listed // parts] < reach
-        assert 0 < touching.sum() < len(touching)
-        assert not np.any(np.diff(touching.astype(int)) > 0)  # pushed first, then the others
+    width = 0.001 * x.meta[SKIN] * reach / (SLACK_BUCKETS - 1)
+    bucket = np.where(d < reach, 0, np.minimum(1 + (d - reach) // width, SLACK_BUCKETS - 1))
+    ends = x.meta[BUCKET:BUCKET + SLACK_BUCKETS]
+    assert ends[-1] == listed and ends[0] == np.sum(d < reach) > 0
+    assert len(set(bucket.tolist())) >= 5 and np.all(np.diff(bucket) >= 0)
+    np.testing.assert_array_equal(np.searchsorted(bucket, np.arange(SLACK_BUCKETS), side="right"), ends)
+    order = {p: k for k, p in enumerate(map(tuple, fresh[:, :built].T.tolist()))}
+    rank = np.array([order[p] for p in map(tuple, pairs.T.tolist())])
+    assert len(set(rank.tolist())) == built  # the same pairs, each once
+    for j in range(SLACK_BUCKETS):  # in the build's order within a bucket
+        assert np.all(np.diff(rank[bucket == j]) > 0)
     P = planes(pos)
     self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf, *x.buffers())  # the list holds
     np.testing.assert_array_equal(x.pairs[:, :listed], pairs)
+
+
+def test_a_substep_checks_the_slack_buckets_its_drift_bound_reaches():
+    """the checked front of the list ends with the last bucket whose least slack lies
+    below the bound, and takes the whole list once the bound nears the skin"""
+    from clothsim.solver.self_collide import BUCKET, SLACK_BUCKETS, _checked
+    meta = np.zeros(BUCKET + SLACK_BUCKETS, dtype=np.int64)
+    meta[BUCKET:] = np.cumsum(np.arange(1, SLACK_BUCKETS + 1) * 10)
+    ends = meta[BUCKET:]
+    width = 0.002
+    assert _checked(meta, 0.0, width) == ends[1]  # touching, and slack below one width
+    assert _checked(meta, 0.999 * width, width) == ends[1]
+    assert _checked(meta, 1.001 * width, width) == ends[2]
+    assert _checked(meta, 3.5 * width, width) == ends[4]
+    assert _checked(meta, (SLACK_BUCKETS - 1) * 0.999 * width, width) == ends[-1]
 
 
 @pytest.mark.parametrize("sparse", [True, False])

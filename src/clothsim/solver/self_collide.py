@@ -8,10 +8,13 @@ dynamics), and each substep only tests the listed pairs. The list is rebuilt
 as soon as any point may have come within ``reach`` of a point not listed:
 when the displacements since the build may differ by ``skin`` between two
 points (not while every displacement lies within ``skin/2`` of one centre,
-see :func:`_drifted`). Two unlisted points started at least
+see :func:`_drift_bound`). Two unlisted points started at least
 ``reach + skin`` apart and their displacements differ by less than
 ``skin``, so they are still farther apart than ``reach``; the pairs found
-are exactly those a hash rebuilt every substep would find.
+are exactly those a hash rebuilt every substep would find. The same bound,
+taken below ``skin``, spares most listed pairs their test: one that started
+farther past the reach than the displacements can differ by cannot touch
+yet, and the list is kept sorted by that slack (:func:`_sort_by_slack`).
 
 The spatial hash is a dense grid of cells over the cloth's bounding box (a
 perfect hash: no two cells share a bucket, so no key is checked), filled
@@ -98,8 +101,11 @@ that far beyond its range, and masks those slots out"""
 
 # fields of the ``meta`` int64 array that carries the list's state between calls
 # (SKIN: the skin in thousandths of the reach)
-PAIRS, VALID, REBUILDS, COLS, SKIN = 0, 1, 2, 3, 4
-META_SIZE = 5
+PAIRS, VALID, REBUILDS, COLS, SKIN, BUCKET = 0, 1, 2, 3, 4, 5
+SLACK_BUCKETS = 8
+"""buckets of the list by how far past the reach a pair was at the build: see
+:func:`_sort_by_slack`"""
+META_SIZE = BUCKET + SLACK_BUCKETS  # BUCKET + j: where slack bucket j ends in the list
 
 
 def grid_spacing(rest: np.ndarray, rows: int, cols: int) -> tuple[float, float]:
@@ -263,7 +269,7 @@ class NeighbourList:
         # per slot: position from the grid's corner, grid row and column, in single precision
         self.sorted_pos = np.zeros((5, n + PAD), dtype=np.float32)
         self.reference = np.zeros((3, n))
-        self.centres = np.zeros((2, 3))  # of the drift test: see _drifted
+        self.centres = np.zeros((2, 3))  # of the drift test: see _drift_bound
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
         self.push = np.zeros((parts, 3, n))
         self.count = np.zeros((parts, n))
@@ -608,19 +614,24 @@ DRIFT_SAMPLE = 512
 the drift test"""
 
 
-@njit(**DRIFT_OPTIONS)
-def _drifted(P, reference, skin, centres):
-    """Whether two points may have come closer by ``skin`` since the list was built.
+DRIFT_LEVELS = 256
+"""steps in which :func:`_drift_bound` measures the squared distance of a
+displacement from its centre, up to (skin/2)²"""
 
-    If every displacement d lies within ``skin/2`` of one centre c, any two
-    differ by less than ``skin``; this holds for any c, so c need not be
-    exact. Two centres are tried in one pass: the mean of a sample of the
-    displacements (tight when the whole cloth moves alike) and the middle of
-    their box (tight when part of the cloth moves and the rest stays, a
-    cloth falling onto the floor). The pass only counts points outside
-    each ball, a sum of selects that LLVM vectorises; the running maxima of
-    a box of all displacements do not vectorise, and took six to eight
-    times as long at 100x100.
+
+@njit(**DRIFT_OPTIONS)
+def _drift_bound(P, reference, skin, centres):
+    """A bound B below ``skin`` on how much closer any two points may have come
+    since the list was built, or inf when two may have come closer by ``skin``.
+
+    If every displacement d lies within B/2 of one centre c, any two differ
+    by less than B; this holds for any c, so c need not be exact. Two
+    centres are tried in one pass: the mean of a sample of the displacements
+    (tight when the whole cloth moves alike) and the middle of their box
+    (tight when part of the cloth moves and the rest stays, a cloth falling
+    onto the floor). The pass takes the largest squared distance from each
+    centre in DRIFT_LEVELS steps, as integers: a maximum of doubles does not
+    vectorise without assuming no NaN, and a NaN must count as drifted.
 
     ``centres`` (2, 3) keeps the last centres chosen, and they are tried
     first: choosing them from the sample cost half again as much as the
@@ -628,10 +639,14 @@ def _drifted(P, reference, skin, centres):
     next, so old centres mostly still hold. Only when neither does are
     new ones chosen and tried.
     """
-    if _outside_both(P, reference, skin, centres) == 0.0:
-        return False
-    _choose_centres(P, reference, centres)
-    return _outside_both(P, reference, skin, centres) != 0.0
+    level = _level_both(P, reference, skin, centres)
+    if level >= DRIFT_LEVELS:
+        _choose_centres(P, reference, centres)
+        level = _level_both(P, reference, skin, centres)
+        if level >= DRIFT_LEVELS:
+            return np.inf
+    # every squared distance from the centre is below (level + 1) steps of (skin/2)²
+    return skin * np.sqrt((level + 1.0) / DRIFT_LEVELS)
 
 
 @njit(**DRIFT_OPTIONS)
@@ -654,26 +669,31 @@ def _choose_centres(P, reference, centres):
 
 
 @njit(**DRIFT_OPTIONS)
-def _outside_both(P, reference, skin, centres):
-    """0 when every displacement lies within ``skin/2`` of either centre; a NaN
-    displacement lies outside both."""
+def _level_both(P, reference, skin, centres):
+    """How many DRIFT_LEVELS steps of (skin/2)² the displacements reach from the
+    better of the two centres: DRIFT_LEVELS when one lies at skin/2 or farther
+    from both, or is not finite."""
     n = P.shape[1]
-    limit = 0.25 * skin * skin
+    scale = DRIFT_LEVELS / (0.25 * skin * skin)
+    top = np.float64(DRIFT_LEVELS)
     m0, m1, m2 = centres[0, 0], centres[0, 1], centres[0, 2]
     c0, c1, c2 = centres[1, 0], centres[1, 1], centres[1, 2]
     x, y, z = P[0], P[1], P[2]
     rx, ry, rz = reference[0], reference[1], reference[2]
-    outside_mean = 0.0
-    outside_mid = 0.0
+    cap = np.int32(DRIFT_LEVELS)
+    worst_mean = np.int32(0)
+    worst_mid = np.int32(0)
     for p in range(n):
         dx = x[p] - rx[p]
         dy = y[p] - ry[p]
         dz = z[p] - rz[p]
-        a = (dx - m0) * (dx - m0) + (dy - m1) * (dy - m1) + (dz - m2) * (dz - m2)
-        b = (dx - c0) * (dx - c0) + (dy - c1) * (dy - c1) + (dz - c2) * (dz - c2)
-        outside_mean += 0.0 if a < limit else 1.0  # NaN counts as outside
-        outside_mid += 0.0 if b < limit else 1.0
-    return min(outside_mean, outside_mid)
+        a = ((dx - m0) * (dx - m0) + (dy - m1) * (dy - m1) + (dz - m2) * (dz - m2)) * scale
+        b = ((dx - c0) * (dx - c0) + (dy - c1) * (dy - c1) + (dz - c2) * (dz - c2)) * scale
+        la = np.int32(a) if a < top else cap  # NaN and inf take the top step
+        lb = np.int32(b) if b < top else cap
+        worst_mean = la if la > worst_mean else worst_mean
+        worst_mid = lb if lb > worst_mid else worst_mid
+    return min(worst_mean, worst_mid)
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -699,7 +719,8 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     parts = push.shape[0]
     reach = 2.0 * thickness
     skin = 0.001 * meta[SKIN] * reach
-    fresh = meta[VALID] == 0 or _drifted(P, reference, skin, centres)
+    bound = np.inf if meta[VALID] == 0 else _drift_bound(P, reference, skin, centres)
+    fresh = not bound < skin
     if fresh:
         radius = reach + skin
         grid = _sort_into_cells(P, radius, span, meta[COLS], cell_start, cell_of, order, slot,
@@ -734,11 +755,19 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     if meta[VALID] == 0:
         return pairs, 0
     listed = meta[PAIRS]
+    # a new list is checked whole and sorted by slack; later substeps check the
+    # pairs whose slack the drift bound reaches
+    width = skin / (SLACK_BUCKETS - 1)
+    checked = listed if fresh else _checked(meta, bound, width)
+    labels = np.empty(listed if fresh else 0, dtype=np.int8)
     for t in prange(parts):
         h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
                         near_masks[t], t, parts)
-        k0, k1 = part_range(listed, parts, t)
-        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, k1, push[t], count[t], touched[t], h, fresh)
+        k0, k1 = part_range(checked, parts, t)
+        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, k1, push[t], count[t], touched[t], h,
+                                      labels, width)
+    if fresh:
+        _sort_by_slack(pairs, labels, listed, meta, parts)
     hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]
@@ -776,39 +805,93 @@ def _copy(src, dst):
 
 
 @njit(**EXACT_OPTIONS)
-def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, gather):
+def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, labels, width):
     """Add the pushes of listed pairs ``k0:k1`` closer than ``reach`` to ``push`` (3, N)
     and ``count`` (N,), noting their ends in ``touched`` after those of the
     ``before`` pairs pushed already (see :func:`_push`); returns how many
     pairs that was.
 
-    With ``gather`` (the first pass over a new list) the pairs pushed are
-    also moved to the front of ``k0:k1``, by a swap per pair that needs no
-    branch. Pairs touch for many substeps on end, so the later passes meet
-    the pushes in one run instead of scattered, and their branch is
-    mispredicted far less: on a piled-up cloth, where one listed pair in
-    six pushes, the pass took a fifth less time.
+    With ``labels`` as long as the list (the first pass over a new one) each
+    pair's slack bucket goes into it as well: 0 if it is closer than
+    ``reach``, else 1 + its distance past the reach in steps of ``width``, at
+    most SLACK_BUCKETS - 1. See :func:`_sort_by_slack`.
     """
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
     hits = 0
-    front = k0
+    label = labels.shape[0] > 0
+    last = np.float64(SLACK_BUCKETS - 1)
     for k in range(k0, k1):
-        ia, ib = pairs[0, k], pairs[1, k]
         # unsigned: a signed index costs a negative-index check per access, 12-20% here
-        a = np.uint64(ia)
-        b = np.uint64(ib)
+        a = np.uint64(pairs[0, k])
+        b = np.uint64(pairs[1, k])
         d2 = (x[a] - x[b]) ** 2 + (y[a] - y[b]) ** 2 + (z[a] - z[b]) ** 2
         close = (d2 < reach2) & (d2 != 0.0)
-        if gather:  # [k0, front) pushed, [front, k) not: swap k in, keep it if pushed
-            pairs[0, k], pairs[1, k] = pairs[0, front], pairs[1, front]
-            pairs[0, front], pairs[1, front] = ia, ib
-            front += 1 if close else 0
+        if label:
+            steps = 1.0 + (np.sqrt(d2) - reach) / width
+            labels[k] = np.int8(0 if d2 < reach2 else (min(steps, last)))
         if not close:
             continue
         _push(P, a, b, reach, push, count, touched, before + hits)
         hits += 1
     return hits
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _sort_by_slack(pairs, labels, listed, meta, parts):
+    """Order the list's first ``listed`` pairs by their ``labels`` (slack buckets),
+    keeping the order within a bucket, and note where each bucket ends in
+    ``meta[BUCKET:]``.
+
+    A pair of the list started ``slack`` past the reach, and it cannot touch
+    before two points have come closer by that much; :func:`_drift_bound`
+    bounds by how much any two have, so each substep only checks the buckets
+    that bound reaches (see :func:`self_collide`). Pairs that touched at the
+    build come first: they touch for many substeps on end, and in one run
+    their branch is rarely mispredicted. Runs once after each build; its
+    scratch is allocated here, as the list may have grown. A counting sort
+    cut into ``parts`` (``prange`` where inlined into parallel code): each
+    counts and places its own range of the list.
+    """
+    at = np.zeros((parts, SLACK_BUCKETS), dtype=np.int64)
+    for t in prange(parts):
+        k0, k1 = part_range(listed, parts, t)
+        for k in range(k0, k1):
+            at[t, labels[k]] += 1
+    # part t's pairs of bucket j go after bucket j's pairs of the parts before it
+    total = 0
+    for j in range(SLACK_BUCKETS):
+        for t in range(parts):
+            c = at[t, j]
+            at[t, j] = total
+            total += c
+        meta[BUCKET + j] = total
+    out = np.empty((2, listed), dtype=np.int32)
+    for t in prange(parts):
+        k0, k1 = part_range(listed, parts, t)
+        _place(pairs, labels, k0, k1, at[t], out)
+    for t in prange(parts):
+        k0, k1 = part_range(listed, parts, t)
+        pairs[0, k0:k1] = out[0, k0:k1]
+        pairs[1, k0:k1] = out[1, k0:k1]
+
+
+@njit(**EXACT_OPTIONS)
+def _place(pairs, labels, k0, k1, at, out):
+    """Pairs ``k0:k1`` into ``out``, each at the next place ``at`` holds for its label."""
+    for k in range(k0, k1):
+        j = labels[k]
+        out[0, at[j]] = pairs[0, k]
+        out[1, at[j]] = pairs[1, k]
+        at[j] += 1
+
+
+@njit(cache=True, inline="always")
+def _checked(meta, bound, width):
+    """How many pairs from the front of the list a substep checks: the buckets
+    whose least slack lies below ``bound``."""
+    top = min(np.int64(bound * (1.0 + 1e-6) / width) + 1, SLACK_BUCKETS - 1)
+    return meta[BUCKET + top]
 
 
 @njit(**EXACT_OPTIONS, inline="always")
