@@ -647,8 +647,9 @@ def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
     assert listed == built
     pairs = x.pairs[:, :listed].copy()
     d = np.linalg.norm(pos[pairs[0]] - pos[pairs[1]], axis=1)
-    width = 0.001 * x.meta[SKIN] * reach / (SLACK_BUCKETS - 1)
-    bucket = np.where(d < reach, 0, np.minimum(1 + (d - reach) // width, SLACK_BUCKETS - 1))
+    radius = reach * (1 + 0.001 * x.meta[SKIN])
+    steps = (d * d - reach * reach) * (SLACK_BUCKETS - 1) / (radius * radius - reach * reach)
+    bucket = np.where(d < reach, 0, np.minimum(1 + np.floor(steps), SLACK_BUCKETS - 1))
     ends = x.meta[BUCKET:BUCKET + SLACK_BUCKETS]
     assert ends[-1] == listed and ends[0] == np.sum(d < reach) > 0
     assert len(set(bucket.tolist())) >= 5 and np.all(np.diff(bucket) >= 0)
@@ -665,17 +666,44 @@ def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
 
 def test_a_substep_checks_the_slack_buckets_its_drift_bound_reaches():
     """the checked front of the list ends with the last bucket whose least slack lies
-    below the bound, and takes the whole list once the bound nears the skin"""
+    below what the bound can reach, and takes the whole list once that nears the skin"""
     from clothsim.solver.self_collide import BUCKET, SLACK_BUCKETS, _checked
     meta = np.zeros(BUCKET + SLACK_BUCKETS, dtype=np.int64)
     meta[BUCKET:] = np.cumsum(np.arange(1, SLACK_BUCKETS + 1) * 10)
     ends = meta[BUCKET:]
-    width = 0.002
-    assert _checked(meta, 0.0, width) == ends[1]  # touching, and slack below one width
-    assert _checked(meta, 0.999 * width, width) == ends[1]
-    assert _checked(meta, 1.001 * width, width) == ends[2]
-    assert _checked(meta, 3.5 * width, width) == ends[4]
-    assert _checked(meta, (SLACK_BUCKETS - 1) * 0.999 * width, width) == ends[-1]
+    assert _checked(meta, 0.0) == ends[1]  # touching, and less than one step past the reach
+    assert _checked(meta, 0.999) == ends[1]
+    assert _checked(meta, 1.001) == ends[2]
+    assert _checked(meta, 3.5) == ends[4]
+    assert _checked(meta, (SLACK_BUCKETS - 1) * 0.999) == ends[-1]
+
+
+def test_near_stencil_skips_only_blocks_the_drift_bound_cannot_bring_within_reach():
+    """a folded cloth squeezed a little more each call, so that more and more row
+    neighbours come within reach: the stencil, which skips blocks whose closest
+    pair started farther past the reach than the drift bound, still pushes every
+    pair a brute-force pass pushes, call after call on one list"""
+    from clothsim.solver.self_collide import near_stencil
+    n = 40
+    m, _, pos = folded_cloth(n, 0.4655, 1.0)  # the standard scenes' thickness over spacing
+    reach = 2 * m.thickness
+    near = near_stencil(m.rest_positions, n, n, m.thickness, 0.75)
+    np.testing.assert_array_equal(near[0], [1, n - 1, n, n + 1])  # rows, columns, diagonals
+    lists = NeighbourList(m.num_points, n, near, skin=0.75)
+    free = np.ones(m.num_points)
+    rng = np.random.default_rng(5)
+    touching = []
+    for call in range(60):
+        expected, pairs = reference_self_collision(pos, m.rest_positions, free, reach, 10 ** 9)
+        P = planes(pos)
+        lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf,
+                                         *lists.buffers())
+        assert hits == pairs, call
+        touching.append(int(np.sum(np.linalg.norm(pos[1:] - pos[:-1], axis=1) < reach)))
+        pos[:, 0] *= 0.999  # squeeze along the rows
+        pos += rng.normal(scale=0.002 * reach, size=pos.shape)
+    assert touching[-1] > 1.5 * touching[0] + 100
+    assert 1 < lists.rebuilds < 30
 
 
 @pytest.mark.parametrize("sparse", [True, False])

@@ -281,6 +281,8 @@ class NeighbourList:
                     np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64), np.zeros(4))
         self.near_offset, self.near_weight, self.near_table, self.near_metric = near
         self.near_masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)
+        # per offset and block of the stencil: slack level of its closest pair at the build
+        self.near_level = np.zeros((len(self.near_offset), n // BLOCK + 1), dtype=np.int32)
         self.touched = np.zeros((parts, 2 * SPARSE_PAIRS), dtype=np.int64)  # ends of pushed pairs
         # pairs found per share of the list build, pairs pushed per part
         self.tally = np.zeros((parts * (QUERY_SHARES if parts > 1 else 1), 2), dtype=np.int64)
@@ -290,7 +292,7 @@ class NeighbourList:
         return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
                 self.reference, self.centres, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
-                self.near_masks, self.touched, self.tally)
+                self.near_masks, self.near_level, self.touched, self.tally)
 
     @property
     def rebuilds(self) -> int:
@@ -699,7 +701,7 @@ def _level_both(P, reference, skin, centres):
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
                  sorted_pos, reference, centres, pairs, push, count, meta, near_offset,
-                 near_weight, near_table, near_metric, near_masks, touched, tally):
+                 near_weight, near_table, near_metric, near_masks, near_level, touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -757,15 +759,19 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     listed = meta[PAIRS]
     # a new list is checked whole and sorted by slack; later substeps check the
     # pairs whose slack the drift bound reaches
-    width = skin / (SLACK_BUCKETS - 1)
-    checked = listed if fresh else _checked(meta, bound, width)
+    # slack in levels of squared distance between the reach and the list radius
+    # (no square root per pair); how far the bound reaches into them
+    span2 = (reach + skin) ** 2 - reach * reach
+    reachable = ((reach + bound) ** 2 - reach * reach) * (1.0 + 1e-6) / span2
+    checked = listed if fresh else _checked(meta, reachable * (SLACK_BUCKETS - 1))
     labels = np.empty(listed if fresh else 0, dtype=np.int8)
     for t in prange(parts):
         h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
-                        near_masks[t], t, parts)
+                        near_masks[t], t, parts, near_level, fresh, reachable * NEAR_LEVELS,
+                        NEAR_LEVELS / span2)
         k0, k1 = part_range(checked, parts, t)
         tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, k1, push[t], count[t], touched[t], h,
-                                      labels, width)
+                                      labels, (SLACK_BUCKETS - 1) / span2)
     if fresh:
         _sort_by_slack(pairs, labels, listed, meta, parts)
     hits, most = 0, 0
@@ -805,7 +811,7 @@ def _copy(src, dst):
 
 
 @njit(**EXACT_OPTIONS)
-def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, labels, width):
+def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, labels, scale):
     """Add the pushes of listed pairs ``k0:k1`` closer than ``reach`` to ``push`` (3, N)
     and ``count`` (N,), noting their ends in ``touched`` after those of the
     ``before`` pairs pushed already (see :func:`_push`); returns how many
@@ -813,8 +819,8 @@ def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, labels, w
 
     With ``labels`` as long as the list (the first pass over a new one) each
     pair's slack bucket goes into it as well: 0 if it is closer than
-    ``reach``, else 1 + its distance past the reach in steps of ``width``, at
-    most SLACK_BUCKETS - 1. See :func:`_sort_by_slack`.
+    ``reach``, else 1 + its squared distance past the reach's square times
+    ``scale``, at most SLACK_BUCKETS - 1. See :func:`_sort_by_slack`.
     """
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
@@ -828,13 +834,17 @@ def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, labels, w
         d2 = (x[a] - x[b]) ** 2 + (y[a] - y[b]) ** 2 + (z[a] - z[b]) ** 2
         close = (d2 < reach2) & (d2 != 0.0)
         if label:
-            steps = 1.0 + (np.sqrt(d2) - reach) / width
+            steps = 1.0 + (d2 - reach2) * scale
             labels[k] = np.int8(0 if d2 < reach2 else (min(steps, last)))
         if not close:
             continue
         _push(P, a, b, reach, push, count, touched, before + hits)
         hits += 1
     return hits
+
+
+SORT_LANES = 4
+"""runs of the list each part of :func:`_sort_by_slack` walks side by side"""
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -849,48 +859,68 @@ def _sort_by_slack(pairs, labels, listed, meta, parts):
     that bound reaches (see :func:`self_collide`). Pairs that touched at the
     build come first: they touch for many substeps on end, and in one run
     their branch is rarely mispredicted. Runs once after each build; its
-    scratch is allocated here, as the list may have grown. A counting sort
-    cut into ``parts`` (``prange`` where inlined into parallel code): each
-    counts and places its own range of the list.
+    scratch is allocated here, as the list may have grown.
+
+    A counting sort cut into ``parts`` (``prange`` where inlined into
+    parallel code), each walking SORT_LANES runs of its range side by side
+    with a counter row per run: a single run's next count or place waits on
+    the store of its last whenever two labels in a row are alike, and the
+    sort took twice as long.
     """
-    at = np.zeros((parts, SLACK_BUCKETS), dtype=np.int64)
+    runs = parts * SORT_LANES
+    at = np.zeros((runs, SLACK_BUCKETS), dtype=np.int64)
     for t in prange(parts):
-        k0, k1 = part_range(listed, parts, t)
-        for k in range(k0, k1):
-            at[t, labels[k]] += 1
-    # part t's pairs of bucket j go after bucket j's pairs of the parts before it
+        lo, hi = part_range(listed, parts, t)
+        _in_lanes(pairs, labels, lo, hi, at[t * SORT_LANES:(t + 1) * SORT_LANES], pairs, False)
+    # run r's pairs of bucket j go after bucket j's pairs of the runs before it
     total = 0
     for j in range(SLACK_BUCKETS):
-        for t in range(parts):
-            c = at[t, j]
-            at[t, j] = total
+        for r in range(runs):
+            c = at[r, j]
+            at[r, j] = total
             total += c
         meta[BUCKET + j] = total
     out = np.empty((2, listed), dtype=np.int32)
     for t in prange(parts):
-        k0, k1 = part_range(listed, parts, t)
-        _place(pairs, labels, k0, k1, at[t], out)
+        lo, hi = part_range(listed, parts, t)
+        _in_lanes(pairs, labels, lo, hi, at[t * SORT_LANES:(t + 1) * SORT_LANES], out, True)
     for t in prange(parts):
-        k0, k1 = part_range(listed, parts, t)
-        pairs[0, k0:k1] = out[0, k0:k1]
-        pairs[1, k0:k1] = out[1, k0:k1]
+        lo, hi = part_range(listed, parts, t)
+        pairs[0, lo:hi] = out[0, lo:hi]
+        pairs[1, lo:hi] = out[1, lo:hi]
 
 
 @njit(**EXACT_OPTIONS)
-def _place(pairs, labels, k0, k1, at, out):
-    """Pairs ``k0:k1`` into ``out``, each at the next place ``at`` holds for its label."""
-    for k in range(k0, k1):
-        j = labels[k]
+def _in_lanes(pairs, labels, lo, hi, at, out, place):
+    """Pairs ``lo:hi`` cut into SORT_LANES runs, walked side by side: count each
+    run's labels into its row of ``at`` or, with ``place``, put each pair into
+    ``out`` at the next place its run's row holds for its label."""
+    size = (hi - lo) // SORT_LANES
+    s0, s1, s2, s3 = lo, lo + size, lo + 2 * size, lo + 3 * size
+    a0, a1, a2, a3 = at[0], at[1], at[2], at[3]
+    for i in range(size):
+        _one(pairs, labels, s0 + i, a0, out, place)
+        _one(pairs, labels, s1 + i, a1, out, place)
+        _one(pairs, labels, s2 + i, a2, out, place)
+        _one(pairs, labels, s3 + i, a3, out, place)
+    for k in range(lo + SORT_LANES * size, hi):  # the rest, in the last run
+        _one(pairs, labels, k, a3, out, place)
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _one(pairs, labels, k, at, out, place):
+    j = labels[k]
+    if place:
         out[0, at[j]] = pairs[0, k]
         out[1, at[j]] = pairs[1, k]
-        at[j] += 1
+    at[j] += 1
 
 
 @njit(cache=True, inline="always")
-def _checked(meta, bound, width):
+def _checked(meta, reachable):
     """How many pairs from the front of the list a substep checks: the buckets
-    whose least slack lies below ``bound``."""
-    top = min(np.int64(bound * (1.0 + 1e-6) / width) + 1, SLACK_BUCKETS - 1)
+    whose least slack lies below ``reachable`` (in the steps of :func:`pair_pushes`)."""
+    top = min(np.int64(reachable) + 1, SLACK_BUCKETS - 1)
     return meta[BUCKET + top]
 
 
@@ -980,8 +1010,14 @@ def apply_pushes(P, push, count, free, inv_steps, lo, hi):
         c0[p] = 0.0
 
 
+NEAR_LEVELS = 32
+"""steps of squared distance between the reach and the list radius in which the
+stencil notes how far past the reach each block's closest pair was"""
+
+
 @njit(**KERNEL_OPTIONS)
-def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, parts):
+def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, parts, level, fresh, reachable,
+                scale):
     """Add the pushes of the near-stencil pairs closer than ``reach`` to ``push``
     and ``count``, noting their ends in ``touched`` (see :func:`_push`);
     returns how many pairs that was. Only part ``part`` of
@@ -990,9 +1026,20 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
     As in the Provot pass, a whole offset set is first only checked, block by
     block of BLOCK pairs (no square root, no stores per pair), setting a bit
     in ``masks`` per pair inside the reach; then only those pairs are pushed.
+
+    On the substep of a build (``fresh``) each block notes in ``level`` (S,
+    blocks) how far its closest pair was past the reach: its squared
+    distance less the reach's, times ``scale``, rounded down. Later a block is
+    skipped while that level is at least ``reachable``, where the drift bound
+    (:func:`_drift_bound`) cannot have brought any of its pairs within reach:
+    on a piled-up 50x50 cloth the diagonal neighbours' blocks, half the
+    stencil, sat about half a skin past it. Integer levels, as their minimum
+    vectorises where one of doubles does not.
     """
     n = P.shape[1]
     reach2 = reach * reach
+    top = np.float64(NEAR_LEVELS)
+    cap = np.int32(NEAR_LEVELS)
     x, y, z = P[0], P[1], P[2]
     hits = 0
     for s in range(offsets.shape[0]):
@@ -1010,14 +1057,30 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
             nb = min(BLOCK, m - lo)
             start = np.uint64(lo)
             mask = np.uint64(0)  # an or of shifted selects vectorises
-            for p in range(nb):
-                q = start + np.uint64(p)
-                dx = x[q] - xb[q]
-                dy = y[q] - yb[q]
-                dz = z[q] - zb[q]
-                d2 = dx * dx + dy * dy + dz * dz
-                close = (ws[q] != 0) & (d2 < reach2) & (d2 > 0.0)
-                mask |= np.uint64(1 if close else 0) << np.uint64(p)
+            if fresh:
+                least = cap
+                for p in range(nb):
+                    q = start + np.uint64(p)
+                    dx = x[q] - xb[q]
+                    dy = y[q] - yb[q]
+                    dz = z[q] - zb[q]
+                    d2 = dx * dx + dy * dy + dz * dz
+                    close = (ws[q] != 0) & (d2 < reach2) & (d2 > 0.0)
+                    mask |= np.uint64(1 if close else 0) << np.uint64(p)
+                    steps = (d2 - reach2) * scale
+                    lv = np.int32(steps) if steps < top else cap
+                    lv = lv if ws[q] != 0 else cap
+                    least = lv if lv < least else least
+                level[s, lo // BLOCK] = least
+            elif level[s, lo // BLOCK] < reachable:
+                for p in range(nb):
+                    q = start + np.uint64(p)
+                    dx = x[q] - xb[q]
+                    dy = y[q] - yb[q]
+                    dz = z[q] - zb[q]
+                    d2 = dx * dx + dy * dy + dz * dz
+                    close = (ws[q] != 0) & (d2 < reach2) & (d2 > 0.0)
+                    mask |= np.uint64(1 if close else 0) << np.uint64(p)
             masks[blocks] = mask
             blocks += 1
         for b in range(blocks):

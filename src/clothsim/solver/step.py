@@ -102,7 +102,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     ``prange`` hands them to threads.
     """
     (cell_start, cell_of, order, slot, sorted_pos, reference, centres, pairs, push, contacts,
-     meta, near_offset, near_weight, near_table, near_metric, near_masks, touched, tally) = lists
+     meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, touched, tally) = lists
     parts = push.shape[0]
     _to_planes(pos, P)
     _to_planes(last, L)
@@ -129,7 +129,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
                                     cell_of, order, slot, sorted_pos, reference, centres,
                                     pairs, push, contacts, meta, near_offset, near_weight, near_table,
-                                    near_metric, near_masks, touched, tally)
+                                    near_metric, near_masks, near_level, touched, tally)
         if parts == 1:
             collide_spheres(P, L, free, spheres, 0, n)
             collide_planes(P, L, free, planes, 0, n)
