@@ -678,18 +678,20 @@ def test_a_substep_checks_the_slack_buckets_its_drift_bound_reaches():
     assert _checked(meta, (SLACK_BUCKETS - 1) * 0.999) == ends[-1]
 
 
-def test_near_stencil_skips_only_blocks_the_drift_bound_cannot_bring_within_reach():
+@pytest.mark.parametrize("parts", [1, 3])
+def test_near_stencil_skips_only_blocks_the_drift_bound_cannot_bring_within_reach(parts):
     """a folded cloth squeezed a little more each call, so that more and more row
     neighbours come within reach: the stencil, which skips blocks whose closest
     pair started farther past the reach than the drift bound, still pushes every
-    pair a brute-force pass pushes, call after call on one list"""
+    pair a brute-force pass pushes, call after call on one list; also with the
+    blocks cut into parts"""
     from clothsim.solver.self_collide import near_stencil
     n = 40
     m, _, pos = folded_cloth(n, 0.4655, 1.0)  # the standard scenes' thickness over spacing
     reach = 2 * m.thickness
     near = near_stencil(m.rest_positions, n, n, m.thickness, 0.75)
     np.testing.assert_array_equal(near[0], [1, n - 1, n, n + 1])  # rows, columns, diagonals
-    lists = NeighbourList(m.num_points, n, near, skin=0.75)
+    lists = NeighbourList(m.num_points, n, near, parts, skin=0.75)
     free = np.ones(m.num_points)
     rng = np.random.default_rng(5)
     touching = []
@@ -699,6 +701,19 @@ def test_near_stencil_skips_only_blocks_the_drift_bound_cannot_bring_within_reac
         lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf,
                                          *lists.buffers())
         assert hits == pairs, call
+        if call == 0:  # the build notes each block's closest pair, in levels of squared distance
+            from clothsim.solver.self_collide import BLOCK, NEAR_LEVELS
+            span2 = (1.75 * reach) ** 2 - reach ** 2
+            for s, o in enumerate(near[0]):
+                d2 = np.sum((pos[o:] - pos[:-o]) ** 2, axis=1)
+                d2[near[1][s][:len(d2)] == 0] = np.inf
+                blocks = -(-len(d2) // BLOCK)
+                least = [d2[b * BLOCK:(b + 1) * BLOCK].min() for b in range(blocks)]
+                expected = np.minimum(np.trunc((np.array(least) - reach ** 2) * NEAR_LEVELS / span2),
+                                      NEAR_LEVELS)
+                np.testing.assert_array_equal(lists.near_level[s, :blocks], expected)
+            levels = lists.near_level[:, :blocks]
+            assert np.median(levels[[1, 3]]) > NEAR_LEVELS // 4 > np.median(levels[[0, 2]])  # diagonals: far
         touching.append(int(np.sum(np.linalg.norm(pos[1:] - pos[:-1], axis=1) < reach)))
         pos[:, 0] *= 0.999  # squeeze along the rows
         pos += rng.normal(scale=0.002 * reach, size=pos.shape)

@@ -1029,7 +1029,8 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
 
     On the substep of a build (``fresh``) each block notes in ``level`` (S,
     blocks) how far its closest pair was past the reach: its squared
-    distance less the reach's, times ``scale``, rounded down. Later a block is
+    distance less the reach's, times ``scale``, rounded toward zero (0 or
+    less for a pair within reach, NEAR_LEVELS at most). Later a block is
     skipped while that level is at least ``reachable``, where the drift bound
     (:func:`_drift_bound`) cannot have brought any of its pairs within reach:
     on a piled-up 50x50 cloth the diagonal neighbours' blocks, half the
