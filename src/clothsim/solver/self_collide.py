@@ -1058,7 +1058,7 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
             nb = min(BLOCK, m - lo)
             start = np.uint64(lo)
             mask = np.uint64(0)  # an or of shifted selects vectorises
-            if fresh:
+            if fresh or level[s, lo // BLOCK] < reachable:
                 least = cap
                 for p in range(nb):
                     q = start + np.uint64(p)
@@ -1068,20 +1068,13 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
                     d2 = dx * dx + dy * dy + dz * dz
                     close = (ws[q] != 0) & (d2 < reach2) & (d2 > 0.0)
                     mask |= np.uint64(1 if close else 0) << np.uint64(p)
-                    steps = (d2 - reach2) * scale
-                    lv = np.int32(steps) if steps < top else cap
-                    lv = lv if ws[q] != 0 else cap
-                    least = lv if lv < least else least
-                level[s, lo // BLOCK] = least
-            elif level[s, lo // BLOCK] < reachable:
-                for p in range(nb):
-                    q = start + np.uint64(p)
-                    dx = x[q] - xb[q]
-                    dy = y[q] - yb[q]
-                    dz = z[q] - zb[q]
-                    d2 = dx * dx + dy * dy + dz * dz
-                    close = (ws[q] != 0) & (d2 < reach2) & (d2 > 0.0)
-                    mask |= np.uint64(1 if close else 0) << np.uint64(p)
+                    if fresh:  # loop-invariant: LLVM keeps a loop without it
+                        steps = (d2 - reach2) * scale
+                        lv = np.int32(steps) if steps < top else cap
+                        lv = lv if ws[q] != 0 else cap
+                        least = lv if lv < least else least
+                if fresh:
+                    level[s, lo // BLOCK] = least
             masks[blocks] = mask
             blocks += 1
         for b in range(blocks):
