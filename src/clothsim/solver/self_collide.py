@@ -758,9 +758,9 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
         return pairs, 0
     listed = meta[PAIRS]
     # a new list is checked whole and sorted by slack; later substeps check the
-    # pairs whose slack the drift bound reaches
-    # slack in levels of squared distance between the reach and the list radius
-    # (no square root per pair); how far the bound reaches into them
+    # pairs whose slack the drift bound reaches. Slack is measured in squared
+    # distance past the reach's square (no square root per pair), in steps of
+    # the span up to the list radius's square
     span2 = (reach + skin) ** 2 - reach * reach
     reachable = ((reach + bound) ** 2 - reach * reach) * (1.0 + 1e-6) / span2
     checked = listed if fresh else _checked(meta, reachable * (SLACK_BUCKETS - 1))
@@ -844,7 +844,8 @@ def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, labels, s
 
 
 SORT_LANES = 4
-"""runs of the list each part of :func:`_sort_by_slack` walks side by side"""
+"""runs of the list each part of :func:`_sort_by_slack` walks side by side (the
+loop of :func:`_in_lanes` is written out for four)"""
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -909,6 +910,7 @@ def _in_lanes(pairs, labels, lo, hi, at, out, place):
 
 @njit(**EXACT_OPTIONS, inline="always")
 def _one(pairs, labels, k, at, out, place):
+    """Count pair k under its label in ``at`` and, with ``place``, put it there."""
     j = labels[k]
     if place:
         out[0, at[j]] = pairs[0, k]
