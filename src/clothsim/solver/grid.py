@@ -256,10 +256,7 @@ def provot(P, enabled, start, end, count, limit, batch, share, masks, lo, hi, cr
             lim = lim_s[q:]
             mask = np.uint64(0)  # an or of shifted selects vectorises
             for p in range(n):
-                dx = xb[p] - xa[p]
-                dy = yb[p] - ya[p]
-                dz = zb[p] - za[p]
-                over = dx * dx + dy * dy + dz * dz > lim[p] * lim[p]
+                over = gap2(xa, ya, za, p, xb, yb, zb, p) > lim[p] * lim[p]
                 mask |= np.uint64(1 if over else 0) << np.uint64(p)
             found[words] = mask
             again[words] = 0
@@ -283,11 +280,19 @@ def provot(P, enabled, start, end, count, limit, batch, share, masks, lo, hi, cr
                 if batch_s[p] == 0:
                     continue
                 a, b = oa + p, ob + p
-                dx = x[b] - x[a]
-                dy = y[b] - y[a]
-                dz = z[b] - z[a]
-                if dx * dx + dy * dy + dz * dz > lim_s[p] * lim_s[p]:
+                if gap2(x, y, z, a, x, y, z, b) > lim_s[p] * lim_s[p]:
                     _correct(P, a, b, lim_s[p], wa[p], wb[p])
+
+
+@njit(cache=True, inline="always")
+def gap2(xa, ya, za, i, xb, yb, zb, j):
+    """Squared distance from point i of the planes (xa, ya, za) to point j of
+    (xb, yb, zb): the test of every vectorised check, where the planes are
+    views that start at each end of a set of pairs."""
+    dx = xb[j] - xa[i]
+    dy = yb[j] - ya[i]
+    dz = zb[j] - za[i]
+    return dx * dx + dy * dy + dz * dz
 
 
 @njit(cache=True, inline="always")

@@ -36,7 +36,7 @@ from numba import njit, prange
 
 from numba.cpython.unsafe.numbers import trailing_zeros
 
-from .grid import BLOCK, KERNEL_OPTIONS, pop_lowest
+from .grid import BLOCK, KERNEL_OPTIONS, gap2, pop_lowest
 
 EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
 """for the kernels that test for NaN before turning coordinates into cell
@@ -831,7 +831,7 @@ def pair_pushes(P, reach, pairs, k0, k1, push, count, touched, before, labels, s
         # unsigned: a signed index costs a negative-index check per access, 12-20% here
         a = np.uint64(pairs[0, k])
         b = np.uint64(pairs[1, k])
-        d2 = (x[a] - x[b]) ** 2 + (y[a] - y[b]) ** 2 + (z[a] - z[b]) ** 2
+        d2 = gap2(x, y, z, a, x, y, z, b)
         close = (d2 < reach2) & (d2 != 0.0)
         if label:
             steps = 1.0 + (d2 - reach2) * scale
@@ -1064,10 +1064,7 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
                 least = cap
                 for p in range(nb):
                     q = start + np.uint64(p)
-                    dx = x[q] - xb[q]
-                    dy = y[q] - yb[q]
-                    dz = z[q] - zb[q]
-                    d2 = dx * dx + dy * dy + dz * dz
+                    d2 = gap2(x, y, z, q, xb, yb, zb, q)
                     close = (ws[q] != 0) & (d2 < reach2) & (d2 > 0.0)
                     mask |= np.uint64(1 if close else 0) << np.uint64(p)
                     if fresh:  # loop-invariant: LLVM keeps a loop without it
