@@ -270,6 +270,30 @@ def test_threads_keep_the_invariants_and_follow_one_thread(threads):
     assert closest_apart_at_rest(split) >= split.model.thickness
 
 
+@pytest.mark.parametrize("threads", [1, 3])
+def test_springs_switched_off_mid_run_leave_plain_verlet(threads):
+    """with every spring kind switched off after a frame with them on, each free point
+    takes the plain Verlet step under gravity, also where a thread's part moves the
+    points the previous part's springs read: no force buffered from the last frame
+    is gathered"""
+    sim = Simulation.from_file(SCENES / "pinned2.json", ["cloth.num_width_points=40",
+                               "cloth.num_height_points=40", "cloth.pinned=[[0,0],[39,0]]",
+                               "simulation.self_collision=false"], threads=threads)
+    assert sim._scratch.parts == threads
+    sim.step()
+    p = sim.params
+    p.enable_structural = p.enable_shearing = p.enable_bending = False
+    x, last = sim.positions.copy(), sim.state.last_positions.copy()
+    free = ~sim.model.pinned
+    assert free.sum() == 1598
+    sim._scratch.forces[:] = np.nan  # stands for any force left from the last frame
+    sim.step()
+    keep = 1.0 - p.damping / 100.0
+    for _ in range(p.simulation_steps):
+        x, last = np.where(free[:, None], x + keep * (x - last) + np.asarray(p.gravity) * p.dt ** 2, x), x
+    np.testing.assert_allclose(sim.positions, x, rtol=0, atol=1e-12)
+
+
 def test_threads_must_be_positive():
     with pytest.raises(ValueError, match="threads"):
         Simulation.from_file(SCENES / "pinned2.json", threads=0)

@@ -150,11 +150,25 @@ def integrate_range(P, L, gravity, k_over_m, free, keep, dt2, start, end, count,
     """:func:`integrate` on the springs that start at points ``first:stop``, moving
     only the points from ``moved`` on: a thread's part of the cloth, whose
     first points the previous part's springs still read."""
+    if not has_springs(k_over_m):
+        verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, max(first, moved), stop, False)
+        return
     for lo in range(first, stop, CHUNK):
         hi = min(lo + CHUNK, stop)
         spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi)
         if lo >= moved:
             verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi)
+
+
+@njit(cache=True, inline="always")
+def has_springs(k_over_m):
+    """Whether any spring set pulls: with every kind switched off, the substep
+    is plain Verlet under gravity, and writing and gathering six sets of zero
+    forces cost 9 us a substep on a 50x50 cloth, six times the step itself."""
+    for s in range(k_over_m.shape[0]):
+        if k_over_m[s] != 0.0:
+            return True
+    return False
 
 
 @njit(**KERNEL_OPTIONS)
@@ -189,10 +203,21 @@ def spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi):
-    """Points ``lo:hi`` gather their spring forces from ``F`` and take their Verlet step."""
+def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, springs=True):
+    """Points ``lo:hi`` gather their spring forces from ``F`` and take their Verlet
+    step; without ``springs`` (see :func:`has_springs`) under gravity alone,
+    and ``F``, which then holds the last forces written, is not read."""
     pad = F.shape[2] - P.shape[1]
     fr = free[lo:]
+    if not springs:
+        for c in range(3):
+            xc, lc = P[c, lo:hi], L[c, lo:]
+            a = gravity[c] * dt2
+            for q in range(hi - lo):
+                xq = xc[q]
+                xc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a)
+                lc[q] = xq
+        return
     for c in range(3):
         xc, lc = P[c, lo:hi], L[c, lo:]
         g = gravity[c]

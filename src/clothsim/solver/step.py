@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 from .collide import collide_planes, collide_spheres
-from .grid import CHUNK, integrate, integrate_range, provot, verlet_gather
+from .grid import CHUNK, has_springs, integrate, integrate_range, provot, verlet_gather
 from .self_collide import self_collide
 
 
@@ -111,6 +111,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     # a part's last springs reach into the next part's first points: those are
     # moved only once every part has its forces
     held = (end.max() + CHUNK - 1) // CHUNK * CHUNK
+    springs = has_springs(k_over_m)
     for _ in range(substeps):
         if parts == 1:
             integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest_length, F)
@@ -122,7 +123,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
             for t in range(1, parts):
                 lo, hi = _chunk_range(n, parts, t)
                 for q in range(lo, min(lo + held, hi), CHUNK):
-                    verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, q, min(q + CHUNK, hi))
+                    verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, q, min(q + CHUNK, hi), springs)
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if self_collision:
