@@ -62,6 +62,13 @@ memory, so narrow cells only trim the range to the search sphere's width
 (the list build took 16% less time on a piled-up 100x100 cloth, 32% on a flat
 200x200 one, than with cubic cells; 6 and 8 gained no more)"""
 
+SEARCH_ROWS = 5
+UP, DOWN, FAR = 1, 2, 4
+"""the rows of ``search``: a point's cell, the first cell of its row of cells,
+the first and one past the last column of cells its search sphere overlaps,
+and flags: that sphere also overlaps the row above along y (UP), the one
+below (DOWN), the next layer along z (FAR)"""
+
 CELLS_PER_POINT = 8
 """most grid cells per point; a cloth spread wider gets coarser cells"""
 
@@ -263,7 +270,7 @@ class NeighbourList:
         scratch and pushes. ``skin``: see :func:`skin_factor`."""
         n = num_points
         self.cell_start = np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64)
-        self.cell_of = np.zeros(n, dtype=np.int64)
+        self.search = np.zeros((SEARCH_ROWS, n), dtype=np.int64)  # see _sort_into_cells
         self.order = np.zeros(n + 1, dtype=np.int64)  # one past the points: see _put
         self.slot = np.zeros(n, dtype=np.int64)
         # per slot: position from the grid's corner, grid row and column, in single precision
@@ -289,7 +296,7 @@ class NeighbourList:
 
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
-        return (self.cell_start, self.cell_of, self.order, self.slot, self.sorted_pos,
+        return (self.cell_start, self.search, self.order, self.slot, self.sorted_pos,
                 self.reference, self.centres, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
                 self.near_masks, self.near_level, self.touched, self.tally)
@@ -300,7 +307,7 @@ class NeighbourList:
 
 
 @njit(**EXACT_OPTIONS)
-def _sort_into_cells(P, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos):
+def _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sorted_pos):
     """Counting-sort the points into a dense grid of cells over their bounding box.
 
     Cells are ``CELL_FACTOR * radius`` wide where the buffer allows, coarser where the
@@ -313,6 +320,11 @@ def _sort_into_cells(P, radius, span, cols, cell_start, cell_of, order, slot, so
     ``cols`` columns are copied to column k of ``sorted_pos`` (5, N + PAD),
     in single precision: the query's first test reads them, and in single
     precision it does twice as many at once (see :func:`query_points`).
+
+    ``search`` (SEARCH_ROWS, N) gets each point's cell and the rows and columns
+    of cells its search sphere overlaps (see :func:`query_points`), worked
+    out here in a loop that vectorises: worked out per point in the query,
+    with a loop over the rows, they took a third of its time.
 
     Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
     the points are not finite or spread wider than ``span``: no list then.
@@ -341,11 +353,24 @@ def _sort_into_cells(P, radius, span, cols, cell_start, cell_of, order, slot, so
     cell_start[:cells + 1] = 0
     x, y, z = P[0], P[1], P[2]
     x0, y0, z0 = lo[0], lo[1], lo[2]
+    cell_of, row_of, first_x, past_x, more = search[0], search[1], search[2], search[3], search[4]
     for p in range(n):  # apart from the counting below, which does not vectorise
         ix = max(min(np.int64((x[p] - x0) * inv_x), nx - 1), 0)
         iy = max(min(np.int64((y[p] - y0) * inv), ny - 1), 0)
         iz = max(min(np.int64((z[p] - z0) * inv), nz - 1), 0)
-        cell_of[p] = (iz * ny + iy) * nx + ix
+        row_of[p] = (iz * ny + iy) * nx
+        cell_of[p] = row_of[p] + ix
+        # the search sphere's cells: a cell is at least 2 radii wide, so at most
+        # one more along y (or, where a coordinate rounds onto a border, one on
+        # each side) and the next one along z; the cells below along z hold
+        # only slots before the point's own (see query_points). Clamping at 0
+        # before the truncation floors the negative values
+        first_x[p] = np.int64(max((x[p] - radius - x0) * inv_x, 0.0))
+        past_x[p] = min(np.int64((x[p] + radius - x0) * inv_x), nx - 1) + 1
+        up = min(np.int64((y[p] + radius - y0) * inv), ny - 1) > iy
+        down = np.int64(max((y[p] - radius - y0) * inv, 0.0)) < iy
+        far = min(np.int64((z[p] + radius - z0) * inv), nz - 1) > iz
+        more[p] = (UP if up else 0) | (DOWN if down else 0) | (FAR if far else 0)
     for p in range(n):
         cell_start[cell_of[p] + 1] += 1
     for c in range(1, cells + 1):
@@ -402,7 +427,7 @@ def _bounds(P, lo, hi):
 
 
 @njit(**EXACT_OPTIONS)
-def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, sorted_pos, pairs,
+def build_list(P, rest, reach, radius, span, cell_start, search, order, slot, sorted_pos, pairs,
                cols, near_table, near_metric, sparse=True):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
@@ -413,15 +438,15 @@ def build_list(P, rest, reach, radius, span, cell_start, cell_of, order, slot, s
     ``near_metric`` is the :func:`grid_metric` of the offsets the list never
     holds.
     """
-    grid = _sort_into_cells(P, radius, span, cols, cell_start, cell_of, order, slot, sorted_pos)
+    grid = _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sorted_pos)
     if grid[3] == 0.0:
         return -1
-    return query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_pos, near_table,
+    return query_points(grid, reach, radius, P, rest, cell_start, search, slot, order, sorted_pos, near_table,
                         near_metric, 0, P.shape[1], pairs, 0, pairs.shape[1], sparse)
 
 
 @njit(**EXACT_OPTIONS)
-def query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_pos, near_table,
+def query_points(grid, reach, radius, P, rest, cell_start, search, slot, order, sorted_pos, near_table,
                  near_metric, first, stop, pairs, base, capacity, sparse):
     """The list pairs (pk, q) of points ``first <= pk < stop`` from the sorted
     cells of :func:`_sort_into_cells` into ``pairs[:, base:base + capacity]``;
@@ -468,33 +493,32 @@ def query_points(grid, reach, radius, P, rest, cell_start, slot, order, sorted_p
     found = 0
     # points in index order, so the list is sorted by its first point and the
     # substep's pass over it walks the cloth in memory order
+    # rows of cells after the point's own, as offsets from it: the next one
+    # along y, and the next layer along z below, at and above the point's row
+    layer = ny * nx
+    rows = (np.int64(0), nx, layer - nx, layer, layer + nx)
     for pk in range(first, stop):
-        k = slot[pk]
-        x, y, z = P[0, pk], P[1, pk], P[2, pk]
+        p = np.uint64(pk)
+        k = slot[p]
         own = (sx[k], sy[k], sz[k], grid_row[k], grid_col[k])
-        # cells the search sphere overlaps; floor, then clamp into the grid
-        ix0 = max(np.int64(np.floor((x - radius - x0) * inv_x)), 0)
-        ix1 = min(np.int64((x + radius - x0) * inv_x), nx - 1)
-        iy0 = max(np.int64(np.floor((y - radius - y0) * inv)), 0)
-        iy1 = min(np.int64((y + radius - y0) * inv), ny - 1)
-        iz0 = max(np.int64(np.floor((z - radius - z0) * inv)), 0)
-        iz1 = min(np.int64((z + radius - z0) * inv), nz - 1)
-        # each pair once: only slots after this point's own, so the rows of
-        # cells before the point's own row hold none and are skipped
-        own_y = max(min(np.int64((y - y0) * inv), ny - 1), 0)
-        own_z = max(min(np.int64((z - z0) * inv), nz - 1), 0)
-        for iz in range(max(iz0, own_z), iz1 + 1):
-            for iy in range(max(iy0, own_y) if iz == own_z else iy0, iy1 + 1):
-                row = (iz * ny + iy) * nx
-                lo = max(cell_start[row + ix0], k + 1)
-                hi = cell_start[row + ix1 + 1]
-                direct = exact and found + (hi - lo) + 2 <= capacity
-                if hi - lo <= LONG_RANGE:
-                    found = _scan(own, columns, k, lo, hi, NARROW, metric, sparse, direct, order, pairs,
-                                  pk, base, found, capacity, exact, rest, reach2, near_table)
-                else:
-                    found = _scan(own, columns, k, lo, hi, WIDE, metric, sparse, direct, order, pairs,
-                                  pk, base, found, capacity, exact, rest, reach2, near_table)
+        row_of, ix0, ix1, more = search[1, p], search[2, p], search[3, p], search[4, p]
+        up, down, far = (more & UP) != 0, (more & DOWN) != 0, (more & FAR) != 0
+        for r in range(5):
+            if not (r == 0 or (r == 1 and up) or (r == 2 and far and down) or (r == 3 and far)
+                    or (r == 4 and far and up)):
+                continue
+            row = np.uint64(row_of + rows[r])
+            # each pair once: in the point's own row only the slots after its own
+            lo = cell_start[row + np.uint64(ix0)]
+            lo = max(lo, k + 1) if r == 0 else lo
+            hi = cell_start[row + np.uint64(ix1)]
+            direct = exact and found + (hi - lo) + 2 <= capacity
+            if hi - lo <= LONG_RANGE:
+                found = _scan(own, columns, k, lo, hi, NARROW, metric, sparse, direct, order, pairs,
+                              pk, base, found, capacity, exact, rest, reach2, near_table)
+            else:
+                found = _scan(own, columns, k, lo, hi, WIDE, metric, sparse, direct, order, pairs,
+                              pk, base, found, capacity, exact, rest, reach2, near_table)
     return found
 
 
@@ -699,7 +723,7 @@ def _level_both(P, reference, skin, centres):
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, cell_of, order, slot,
+def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, search, order, slot,
                  sorted_pos, reference, centres, pairs, push, count, meta, near_offset,
                  near_weight, near_table, near_metric, near_masks, near_level, touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
@@ -725,7 +749,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
     fresh = not bound < skin
     if fresh:
         radius = reach + skin
-        grid = _sort_into_cells(P, radius, span, meta[COLS], cell_start, cell_of, order, slot,
+        grid = _sort_into_cells(P, radius, span, meta[COLS], cell_start, search, order, slot,
                                 sorted_pos)
         if grid[3] == 0.0:
             meta[VALID] = 0
@@ -739,7 +763,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, c
             for t in prange(parts):
                 for j in range(t, shares, parts):
                     lo, hi = part_range(n, shares, j)
-                    tally[j, 0] = query_points(grid, reach, radius, P, rest, cell_start, slot,
+                    tally[j, 0] = query_points(grid, reach, radius, P, rest, cell_start, search, slot,
                                                order, sorted_pos, near_table, near_metric, lo, hi,
                                                pairs, j * size, size, sparse)
             most = 0

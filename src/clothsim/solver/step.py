@@ -101,7 +101,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     parts one after another, and as :func:`advance_parallel`, where each
     ``prange`` hands them to threads.
     """
-    (cell_start, cell_of, order, slot, sorted_pos, reference, centres, pairs, push, contacts,
+    (cell_start, search, order, slot, sorted_pos, reference, centres, pairs, push, contacts,
      meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, touched, tally) = lists
     parts = push.shape[0]
     _to_planes(pos, P)
@@ -128,7 +128,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
-                                    cell_of, order, slot, sorted_pos, reference, centres,
+                                    search, order, slot, sorted_pos, reference, centres,
                                     pairs, push, contacts, meta, near_offset, near_weight, near_table,
                                     near_metric, near_masks, near_level, touched, tally)
         if parts == 1:
