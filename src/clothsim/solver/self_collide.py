@@ -54,7 +54,9 @@ COARSE_OFFSETS = 4
 for the cloth to count as coarse"""
 
 CELL_FACTOR = 2.0
-"""cell size over the search radius: each point then looks in 2x2 rows of cells"""
+"""cell size over the search radius: each point then looks in 2x2 rows of cells
+(at least 2: the ``search`` flags of :func:`_sort_into_cells` take a sphere to
+reach at most one cell past its own along y and z)"""
 
 X_SPLIT = 4
 """cells are this many times narrower along x: a row of cells is one range of
@@ -441,18 +443,21 @@ def build_list(P, rest, reach, radius, span, cell_start, search, order, slot, so
     grid = _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sorted_pos)
     if grid[3] == 0.0:
         return -1
-    return query_points(grid, reach, radius, P, rest, cell_start, search, slot, order, sorted_pos, near_table,
+    return query_points(grid, reach, radius, rest, cell_start, search, slot, order, sorted_pos, near_table,
                         near_metric, 0, P.shape[1], pairs, 0, pairs.shape[1], sparse)
 
 
 @njit(**EXACT_OPTIONS)
-def query_points(grid, reach, radius, P, rest, cell_start, search, slot, order, sorted_pos, near_table,
+def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sorted_pos, near_table,
                  near_metric, first, stop, pairs, base, capacity, sparse):
     """The list pairs (pk, q) of points ``first <= pk < stop`` from the sorted
     cells of :func:`_sort_into_cells` into ``pairs[:, base:base + capacity]``;
-    returns how many there are, which may exceed the capacity. P (3, N) and
-    rest (N, 3) are the positions the cells were sorted from and the rest
-    layout.
+    returns how many there are, which may exceed the capacity. ``rest`` (N, 3)
+    is the rest layout.
+
+    The rows and columns of cells each point searches come from ``search``,
+    filled by the cell sort; each pair is found once, from the point whose
+    slot comes first, so a point skips the rows of cells before its own.
 
     Each row of cells a point searches is tested NARROW or WIDE slots at a
     time, in a loop that LLVM vectorises and that only sets a bit per
@@ -478,8 +483,6 @@ def query_points(grid, reach, radius, P, rest, cell_start, search, slot, order, 
     turns the loads into gathers.
     """
     size = grid[3]
-    x0, y0, z0, inv = grid[0], grid[1], grid[2], 1.0 / size
-    inv_x = X_SPLIT * inv
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
     # each coordinate from the corner is rounded by at most extent * 2**-24
     extent = max(nx * size / X_SPLIT, ny * size, nz * size)
@@ -763,7 +766,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
             for t in prange(parts):
                 for j in range(t, shares, parts):
                     lo, hi = part_range(n, shares, j)
-                    tally[j, 0] = query_points(grid, reach, radius, P, rest, cell_start, search, slot,
+                    tally[j, 0] = query_points(grid, reach, radius, rest, cell_start, search, slot,
                                                order, sorted_pos, near_table, near_metric, lo, hi,
                                                pairs, j * size, size, sparse)
             most = 0
