@@ -4,6 +4,9 @@ against plain NumPy/Python references over the model's spring list."""
 from __future__ import annotations
 
 import itertools
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -13,7 +16,8 @@ from clothsim.scene import ClothSpec
 from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
 from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                   integrate, provot)
-from clothsim.solver.self_collide import (NARROW, SPARSE_PAIRS, WIDE, NeighbourList, _bounds, _drift_bound, build_list,
+from clothsim.solver.simd import FORCE_PORTABLE, has_compress
+from clothsim.solver.self_collide import (COMPRESS, NARROW, SPARSE_PAIRS, WIDE, NeighbourList, _bounds, _drift_bound, build_list,
                                           self_collide)
 
 
@@ -766,3 +770,29 @@ def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze, p
     lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 3, np.inf, *lists.buffers())
     assert hits == pairs > 100
     np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-12)
+
+
+def test_append_path_follows_the_machine(monkeypatch):
+    """the list build appends with AVX-512's compress where the machine has it, and
+    FORCE_PORTABLE in the environment turns that off"""
+    assert COMPRESS == has_compress()
+    monkeypatch.setenv(FORCE_PORTABLE, "1")
+    assert not has_compress()
+
+
+PORTABLE_TESTS = ["test_append_path_follows_the_machine",
+                  "test_neighbour_list_holds_exactly_the_pairs_within_the_radius",
+                  "test_list_build_writes_the_same_pairs_directly_and_stops_at_its_capacity"]
+
+
+@pytest.mark.skipif(bool(os.environ.get(FORCE_PORTABLE)), reason="already on the portable path")
+def test_portable_append_passes_the_list_tests(tmp_path):
+    """the other append, compiled afresh on the portable path, passes the list build's
+    tests: on a machine with AVX-512 the portable path runs nowhere else, and on
+    one without, these tests run it anyway"""
+    env = {**os.environ, FORCE_PORTABLE: "1", "NUMBA_CACHE_DIR": str(tmp_path)}
+    ids = [f"{__file__}::{name}" for name in PORTABLE_TESTS]
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *ids],
+                         env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    assert f"{len(PORTABLE_TESTS) + 1} passed" in run.stdout  # one of them is parametrized twice

@@ -37,6 +37,7 @@ from numba import njit, prange
 from numba.cpython.unsafe.numbers import trailing_zeros
 
 from .grid import BLOCK, KERNEL_OPTIONS, gap2, pop_lowest
+from .simd import LANES, compress_store, has_compress
 
 EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
 """for the kernels that test for NaN before turning coordinates into cell
@@ -105,8 +106,16 @@ a fifth less time than NARROW; on the ranges of a 50x50 cloth (under 16
 slots) and of a hanging 100x100 one (about 30) NARROW is faster"""
 
 PAD = WIDE
-"""columns past the last slot of ``sorted_pos``: a chunk of candidates may read
-that far beyond its range, and masks those slots out"""
+"""columns past the last slot of ``sorted_pos`` and ``order``: a chunk of
+candidates may read that far beyond its range, and masks those slots out"""
+
+COMPRESS = has_compress()
+"""whether the list build appends a chunk's pairs with AVX-512's compress
+(:func:`_put_compressed`) or bit by bit (:func:`_put`); fixed when this module
+is imported"""
+
+PUT_ROOM = LANES if COMPRESS else 2
+"""pairs past its count a direct append may write: see :func:`query_points`"""
 
 # fields of the ``meta`` int64 array that carries the list's state between calls
 # (SKIN: the skin in thousandths of the reach)
@@ -273,7 +282,7 @@ class NeighbourList:
         n = num_points
         self.cell_start = np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64)
         self.search = np.zeros((SEARCH_ROWS, n), dtype=np.int64)  # see _sort_into_cells
-        self.order = np.zeros(n + 1, dtype=np.int64)  # one past the points: see _put
+        self.order = np.zeros(n + PAD, dtype=np.int32)  # past the points: see _put, _put_compressed
         self.slot = np.zeros(n, dtype=np.int64)
         # per slot: position from the grid's corner, grid row and column, in single precision
         self.sorted_pos = np.zeros((5, n + PAD), dtype=np.float32)
@@ -473,8 +482,9 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
 
     Where the rest layout lets no further test reject a pair (``near_metric``
     exact) and the pairs array has room, the bits go straight into it
-    (:func:`_put`), without a branch per bit; otherwise each goes through the
-    exact tests and the capacity check (:func:`_put_checked`). A ``sparse``
+    (:func:`_put_compressed` or :func:`_put`), without a branch per bit;
+    otherwise each goes through the exact tests and the capacity check
+    (:func:`_put_checked`). A ``sparse``
     build (a hanging cloth, few pairs per point) first skips the chunks with
     no bit, a branch that is then nearly always right; in a crowded one it
     was wrong about as often as not, and leaving it out made the build a
@@ -515,7 +525,7 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
             lo = cell_start[row + np.uint64(ix0)]
             lo = max(lo, k + 1) if r == 0 else lo
             hi = cell_start[row + np.uint64(ix1)]
-            direct = exact and found + (hi - lo) + 2 <= capacity
+            direct = exact and found + (hi - lo) + PUT_ROOM <= capacity
             if hi - lo <= LONG_RANGE:
                 found = _scan(own, columns, k, lo, hi, NARROW, metric, sparse, direct, order, pairs,
                               pk, base, found, capacity, exact, rest, reach2, near_table)
@@ -542,7 +552,7 @@ def _scan(own, columns, k, lo, hi, width, metric, sparse, direct, order, pairs, 
         if sparse and mask == 0:
             continue
         if direct:
-            found = _put(mask, at, order, pairs, pk, base + found) - base
+            found = _put_direct(mask, at, order, pairs, pk, base + found, width) - base
         else:
             found = _put_checked(mask, at, order, pairs, pk, base, found, capacity, exact, rest,
                                  grid_row, grid_col, k, reach2, near_table)
@@ -573,13 +583,14 @@ def _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radi
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _put(mask, at, order, pairs, pk, end):
+def _put(mask, at, order, pairs, pk, end, width):
     """Append the pairs (pk, point in slot ``at + j``) of the bits j of ``mask`` at
     ``pairs[:, end:]``; returns the new end. The first two are written
     whether their bit is there or not, and counted only if it is: most masks
     hold none, one or two bits, and a loop over them ended in a mispredicted
-    branch. The caller leaves room for two pairs more than the bits, and
-    ``order`` one slot past the points (an empty mask reads slot ``at``)."""
+    branch. The caller leaves room for two pairs more than the bits
+    (PUT_ROOM), and ``order`` a slot past the points (an empty mask reads
+    slot ``at``). ``width``: the bits the mask may hold (unused here)."""
     j = np.int64(trailing_zeros(mask)) & 63
     pairs[0, end] = pk
     pairs[1, end] = order[np.uint64(at + j)]
@@ -596,6 +607,37 @@ def _put(mask, at, order, pairs, pk, end):
         pairs[1, end] = order[np.uint64(at + j)]
         end += 1
     return end
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _put_compressed(mask, at, order, pairs, pk, end, width):
+    """:func:`_put` with AVX-512's compress, LANES bits of the ``width`` at a time: all
+    LANES points of the slots are loaded, the chosen ones packed to the front
+    and stored with pk beside each, and the end moves on by their number. No
+    branch depends on the bits; on a piled-up 50x50 cloth the build took 15%
+    less time. Up to LANES pairs past the new end are overwritten (PUT_ROOM),
+    and ``order`` is read up to ``width`` slots past ``at`` (PAD)."""
+    e = np.uint64(end)
+    for c in range(0, width, LANES):
+        for j in range(LANES):
+            pairs[0, e + np.uint64(j)] = pk
+        bits = (mask >> np.uint64(c)) & np.uint64((1 << LANES) - 1)
+        compress_store(order, np.uint64(at + c), pairs, np.uint64(1), e, bits)
+        e += np.uint64(_count_bits(bits))
+    return np.int64(e)
+
+
+@njit(cache=True, inline="always")
+def _count_bits(mask):
+    """The set bits of ``mask``: LLVM turns this loop into one popcount."""
+    c = 0
+    while mask != 0:
+        mask &= mask - np.uint64(1)
+        c += 1
+    return c
+
+
+_put_direct = _put_compressed if COMPRESS else _put
 
 
 @njit(**EXACT_OPTIONS, inline="always")
