@@ -395,17 +395,22 @@ def _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sor
     for c in range(cells):
         cell_start[c] = cell_start[c + 1]
     cell_start[cells] = n
-    row, col = 0.0, 0.0  # counted along: dividing them out per candidate pair cost 5-10% of the build
-    for p in range(n):
-        k = slot[p]
-        order[k] = p
-        for c in range(3):
-            sorted_pos[c, k] = np.float32(P[c, p] - lo[c])
-        sorted_pos[3, k] = row
-        sorted_pos[4, k] = col
-        col += 1.0
-        if col == cols:
-            row, col = row + 1.0, 0.0
+    # walked row by row of the cloth, so each point's row and column come from the
+    # loops: dividing them out per candidate pair cost 5-10% of the build, and
+    # counting them along in one loop chained every point to the last (13 us
+    # instead of 4.6 at 50x50)
+    sx, sy, sz, grid_row, grid_col = sorted_pos[0], sorted_pos[1], sorted_pos[2], sorted_pos[3], sorted_pos[4]
+    for first in range(0, n, cols):
+        row = np.float32(first // cols)
+        for i in range(min(cols, n - first)):
+            p = first + i
+            k = np.uint64(slot[p])
+            order[k] = p
+            sx[k] = np.float32(x[p] - x0)
+            sy[k] = np.float32(y[p] - y0)
+            sz[k] = np.float32(z[p] - z0)
+            grid_row[k] = row
+            grid_col[k] = np.float32(i)
     grid[0], grid[1], grid[2], grid[3] = lo[0], lo[1], lo[2], size
     grid[4], grid[5], grid[6] = nx, ny, nz
     return grid
