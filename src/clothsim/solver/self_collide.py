@@ -37,7 +37,7 @@ from numba import njit, prange
 from numba.cpython.unsafe.numbers import trailing_zeros
 
 from .grid import BLOCK, KERNEL_OPTIONS, gap2, pop_lowest
-from .simd import LANES, compress_store, has_compress
+from .simd import LANES, compress_store, has_compress, inside
 
 EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
 """for the kernels that test for NaN before turning coordinates into cell
@@ -568,19 +568,16 @@ def _scan(own, columns, k, lo, hi, width, metric, sparse, direct, order, pairs, 
 def _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radius2, wr2, wc2, rho2):
     """A bit per slot ``at <= q < min(at + width, hi)`` that lies inside the radius of
     the point at (x, y, z), grid row gr and column gc, and is not a grid
-    neighbour inside the ellipse of :func:`grid_metric`. ``width`` (at most
-    64) slots are read, whatever ``hi``. All in single precision."""
-    start = np.uint64(at)
-    mask = np.uint64(0)  # an or of shifted selects vectorises
-    for j in range(width):
-        q = start + np.uint64(j)
-        dx = x - sx[q]
-        dy = y - sy[q]
-        dz = z - sz[q]
-        er = grid_row[q] - gr
-        ec = grid_col[q] - gc
-        ok = (dx * dx + dy * dy + dz * dz < radius2) & (er * er * wr2 + ec * ec * wc2 >= rho2)
-        mask |= np.uint64(1 if ok else 0) << np.uint64(j)
+    neighbour inside the ellipse of :func:`grid_metric`. ``width`` (a multiple
+    of LANES, at most 64) slots are read, whatever ``hi``. All in single
+    precision, LANES slots at a time (:func:`clothsim.solver.simd.inside`):
+    as a loop that ored a shifted bit per slot the build took an eighth
+    longer."""
+    mask = np.uint64(0)
+    for c in range(0, width, LANES):
+        bits = inside(sx, sy, sz, grid_row, grid_col, np.uint64(at + c), x, y, z, gr, gc, radius2, wr2, wc2,
+                      rho2)
+        mask |= bits << np.uint64(c)
     # the slots before hi, masked after the loop: a 64-bit comparison in it
     # would halve the single-precision lanes
     valid = np.uint64(min(hi - at, width))

@@ -1,10 +1,18 @@
-"""A vector instruction numba does not write by itself: AVX-512's compress.
+"""Vector code numba does not write by itself, for the list build's inner loop.
 
-The list build finds a chunk's pairs as a mask of bits, one per candidate
-slot, and must append the points of the set bits to the list. Written as a
-loop over the bits, that ends in a mispredicted branch for most chunks; the
-compress instruction packs the chosen lanes of a vector together in one
-step, so the append is a load, a compress and a store whatever the bits.
+The build tests candidates LANES at a time and keeps a mask of bits, one per
+candidate inside the search sphere (:func:`inside`), then appends the points
+of the set bits to the list (:func:`compress_store`).
+
+- Written as a loop that ors a shifted bit per lane into a 64-bit mask,
+  LLVM vectorises the test but then folds the lanes together in a chain of
+  shuffles; LLVM's own vector code turns the lanes' comparison straight
+  into a bit mask, one instruction on x86. Portable: LLVM lowers it for
+  any target.
+- Appending the set bits one by one ends in a mispredicted branch for most
+  chunks; AVX-512's compress packs the chosen lanes of a vector together
+  in one step, so the append is a load, a compress and a store whatever
+  the bits. Only where the machine has AVX-512 (:func:`has_compress`).
 """
 
 from __future__ import annotations
@@ -73,5 +81,49 @@ def compress_store(typingctx, src, at, dst, row, end, mask):
         packed = builder.call(fn, [lanes, ir.Constant(vec, None), chosen])
         builder.store(packed, builder.bitcast(to_ptr, vec.as_pointer()), align=4)
         return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@intrinsic
+def inside(typingctx, sx, sy, sz, rows, cols, at, x, y, z, row, col, radius2, wr2, wc2, rho2):
+    """A bit per slot ``at + j``, j < LANES, of the float32 (N,) arrays of positions
+    (sx, sy, sz) and grid rows and columns: set where the slot lies closer than
+    ``sqrt(radius2)`` to (x, y, z) and its grid offset from (row, col) does not
+    lie inside the ellipse ``(dr² wr2 + dc² wc2 < rho2)``. The same single
+    precision arithmetic, in the same order, as the scalar form
+    ``(dx*dx + dy*dy + dz*dz < radius2) & (dr*dr*wr2 + dc*dc*wc2 >= rho2)``;
+    nothing is bounds-checked."""
+    arrays = (sx, sy, sz, rows, cols)
+    if not all(isinstance(a, types.Array) and a.ndim == 1 and a.dtype == types.float32 for a in arrays):
+        raise TypingError("inside takes five float32 (N,) arrays")
+    sig = types.uint64(sx, sy, sz, rows, cols, at, x, y, z, row, col, radius2, wr2, wc2, rho2)
+
+    def codegen(context, builder, signature, args):
+        vec = ir.VectorType(ir.FloatType(), LANES)
+        start = context.cast(builder, args[5], signature.args[5], types.intp)
+
+        def load(k):
+            a = context.make_array(signature.args[k])(context, builder, args[k])
+            ptr = cgutils.get_item_pointer(context, builder, signature.args[k], a, [start], wraparound=False)
+            return builder.load(builder.bitcast(ptr, vec.as_pointer()), align=4)
+
+        def splat(k):
+            v = context.cast(builder, args[k], signature.args[k], types.float32)
+            one = builder.insert_element(ir.Constant(vec, ir.Undefined), v, ir.Constant(ir.IntType(32), 0))
+            return builder.shuffle_vector(one, ir.Constant(vec, ir.Undefined),
+                                          ir.Constant(ir.VectorType(ir.IntType(32), LANES), [0] * LANES))
+
+        sx_v, sy_v, sz_v, rows_v, cols_v = (load(k) for k in range(5))
+        dx = builder.fsub(splat(6), sx_v)
+        dy = builder.fsub(splat(7), sy_v)
+        dz = builder.fsub(splat(8), sz_v)
+        d2 = builder.fadd(builder.fadd(builder.fmul(dx, dx), builder.fmul(dy, dy)), builder.fmul(dz, dz))
+        dr = builder.fsub(rows_v, splat(9))
+        dc = builder.fsub(cols_v, splat(10))
+        grid = builder.fadd(builder.fmul(builder.fmul(dr, dr), splat(12)),
+                            builder.fmul(builder.fmul(dc, dc), splat(13)))
+        ok = builder.and_(builder.fcmp_ordered("<", d2, splat(11)), builder.fcmp_ordered(">=", grid, splat(14)))
+        return builder.zext(builder.bitcast(ok, ir.IntType(LANES)), ir.IntType(64))
 
     return sig, codegen
