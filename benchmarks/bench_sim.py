@@ -4,10 +4,12 @@ Prints one JSON object per measurement. The figures are single-threaded;
 ``substeps_per_s_threads`` is the same run with the substep cut over numba's
 thread count (``NUMBA_NUM_THREADS``, by default the machine's cores). The
 cost of the springs (forces and the Provot pass) and of self-collision per
-substep come from differences of runs with each switched off, measured back
-to back. Each measurement is the median of ``--repeats`` runs of the same
-stretch of simulated time from the scene's start, after a warm-up that
-compiles the kernels.
+substep come from differences of runs with each switched off. Each figure is
+the median of ``--repeats`` rounds of runs of the same stretch of simulated
+time from the scene's start, after a warm-up that compiles the kernels; a
+round runs every variant back to back, and the costs are the medians of each
+round's differences, so a slow spell of the machine (they last seconds here)
+falls on the runs compared alike.
 
 Last, ``"bench": "settle"`` lines time the whole two-second fall and settle of
 ``selfCollision`` at 100x100 on one thread and on all: the short stretches
@@ -47,23 +49,49 @@ def sized(scene: str, n: int) -> list[str]:
     return out
 
 
+def run_once(scene: str, n: int, seconds: float, self_collision: bool = True, springs: bool = True,
+             threads: int = 1) -> tuple[float, float]:
+    """(substeps/s, neighbour-list rebuilds per 100 substeps) of one run from the scene's start"""
+    sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n), threads=threads)
+    sim.params.self_collision = self_collision and sim.params.self_collision
+    if not springs:
+        sim.params.enable_structural = sim.params.enable_shearing = sim.params.enable_bending = False
+    frames = max(1, round(seconds * sim.params.frames_per_sec))
+    start = time.perf_counter()
+    for _ in range(frames):
+        sim.step()
+    substeps = frames * sim.params.simulation_steps
+    return substeps / (time.perf_counter() - start), 100.0 * sim.neighbour_list_rebuilds / substeps
+
+
 def measure(scene: str, n: int, seconds: float, self_collision: bool, repeats: int,
             springs: bool = True, threads: int = 1) -> tuple[float, float]:
     """(median substeps/s, neighbour-list rebuilds per 100 substeps)"""
-    rates, rebuilds = [], []
+    runs = [run_once(scene, n, seconds, self_collision, springs, threads) for _ in range(repeats)]
+    return statistics.median(r for r, _ in runs), statistics.median(b for _, b in runs)
+
+
+VARIANTS = {"with": {}, "without": {"self_collision": False},
+            "bare": {"self_collision": False, "springs": False}}
+"""the runs whose differences give the cost of self-collision (with - without) and
+of the springs (without - bare)"""
+
+
+def measure_rounds(scene: str, n: int, seconds: float, repeats: int, threads: int) -> dict:
+    """Each round runs every variant once, then once cut over ``threads``, back to
+    back, so a slow spell of the machine falls on all of them alike; the costs
+    are medians of each round's differences."""
+    rounds = []
     for _ in range(repeats):
-        sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n), threads=threads)
-        sim.params.self_collision = self_collision and sim.params.self_collision
-        if not springs:
-            sim.params.enable_structural = sim.params.enable_shearing = sim.params.enable_bending = False
-        frames = max(1, round(seconds * sim.params.frames_per_sec))
-        start = time.perf_counter()
-        for _ in range(frames):
-            sim.step()
-        substeps = frames * sim.params.simulation_steps
-        rates.append(substeps / (time.perf_counter() - start))
-        rebuilds.append(100.0 * sim.neighbour_list_rebuilds / substeps)
-    return statistics.median(rates), statistics.median(rebuilds)
+        runs = {name: run_once(scene, n, seconds, **kw) for name, kw in VARIANTS.items()}
+        runs["threads"] = run_once(scene, n, seconds, threads=threads)
+        rounds.append(runs)
+    us = [{name: 1e6 / rate for name, (rate, _) in runs.items()} for runs in rounds]
+    median = statistics.median
+    return {"with": median(r["with"][0] for r in rounds), "without": median(r["without"][0] for r in rounds),
+            "threads": median(r["threads"][0] for r in rounds), "rebuilds": median(r["with"][1] for r in rounds),
+            "springs_us": median(u["without"] - u["bare"] for u in us),
+            "self_collision_us": median(u["with"] - u["without"] for u in us)}
 
 
 def main() -> None:
@@ -81,19 +109,16 @@ def main() -> None:
     for n in (int(s) for s in args.sizes.split(",")):
         for scene in args.scenes.split(","):
             seconds = SECONDS.get(n, 0.1)
-            with_self, rebuilds = measure(scene, n, seconds, True, args.repeats)
-            without, _ = measure(scene, n, seconds, False, args.repeats)
-            bare, _ = measure(scene, n, seconds, False, args.repeats, springs=False)
-            split, _ = measure(scene, n, seconds, True, args.repeats, threads=threads)
-            us = 1e6 / with_self, 1e6 / without, 1e6 / bare  # microseconds per substep
+            m = measure_rounds(scene, n, seconds, args.repeats, threads)
+            with_self, without, split = m["with"], m["without"], m["threads"]
             emit({"bench": "simulate", "scene": scene, "points": n * n, "grid": f"{n}x{n}",
                   "simulated_s": seconds, "substeps_per_s": round(with_self, 1),
                   "point_updates_per_s": round(with_self * n * n),
                   "substeps_per_s_no_self_collision": round(without, 1),
                   "threads": threads, "substeps_per_s_threads": round(split, 1),
-                  "springs_us_per_substep": round(us[1] - us[2], 1),
-                  "self_collision_us_per_substep": round(us[0] - us[1], 1),
-                  "list_rebuilds_per_100_substeps": round(rebuilds, 1),
+                  "springs_us_per_substep": round(m["springs_us"], 1),
+                  "self_collision_us_per_substep": round(m["self_collision_us"], 1),
+                  "list_rebuilds_per_100_substeps": round(m["rebuilds"], 1),
                   "realtime_factor": round(with_self / 2700.0, 3),
                   "realtime_factor_threads": round(split / 2700.0, 3),
                   "peak_rss_mib": round(peak_rss_mib(), 1), **info})
