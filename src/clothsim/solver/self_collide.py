@@ -476,7 +476,7 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
     slot comes first, so a point skips the rows of cells before its own.
 
     Each row of cells a point searches is tested NARROW or WIDE slots at a
-    time, in a loop that LLVM vectorises and that only sets a bit per
+    time, in vector code (:func:`_inside`) that only sets a bit per
     candidate inside the radius and not one of the grid neighbours that
     ``near_metric`` (:func:`grid_metric`) marks as never listed. A range of a
     50x50 cloth holds a few slots, and a loop over exactly those ended in a
@@ -511,12 +511,12 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
     reach2 = reach * reach
     exact = near_metric[3] != 0.0
     found = 0
-    # points in index order, so the list is sorted by its first point and the
-    # substep's pass over it walks the cloth in memory order
     # rows of cells after the point's own, as offsets from it: the next one
     # along y, and the next layer along z below, at and above the point's row
     layer = ny * nx
     rows = (np.int64(0), nx, layer - nx, layer, layer + nx)
+    # points in index order, so the list is sorted by its first point and the
+    # substep's pass over it walks the cloth in memory order
     for pk in range(first, stop):
         p = np.uint64(pk)
         k = slot[p]
@@ -780,9 +780,9 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     Each pair pushes both ends; a point's pushes are averaged over its
     colliding neighbours and divided by ``simulation_steps``; pinned points
     (``free`` 0) stay. Returns (pairs array, number of colliding pairs); the
-    array is a new one when the list outgrew it. When the points are spread
-    wider than ``span`` [m] (a run that blew up) no list is built and nothing
-    is pushed.
+    array is a new one after each build (see :func:`_sort_by_slack`). When
+    the points are spread wider than ``span`` [m] (a run that blew up) no
+    list is built and nothing is pushed.
 
     The work is cut into as many parts as the buffers have (``push.shape[0]``),
     each with its own pushes, summed at the end. Inlined into a

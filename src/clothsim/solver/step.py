@@ -83,7 +83,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
 
     Returns (largest squared distance of a point from ``center`` afterwards,
     inf when the state is no longer finite; the neighbour-list pairs array,
-    replaced when it grew). ``lists`` is the tuple of self-collision buffers,
+    a new one after each build). ``lists`` is the tuple of self-collision buffers,
     ``NeighbourList.buffers()``; ``span`` [m] is the spread of the points
     beyond which the run has blown up and self-collision stops looking.
 
