@@ -28,11 +28,13 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 LANES = 16
-"""int32 lanes of one compress: a 512-bit vector"""
+"""lanes of 32 bits the build's vector code works on at once: one 512-bit vector"""
 
 FORCE_PORTABLE = "CLOTHSIM_NO_AVX512"
 """set (to anything but empty) in the environment to compile the portable path
-on a machine that has AVX-512: how the tests check that path"""
+on a machine that has AVX-512: how the tests check that path. numba's cache
+does not know of it, so it takes effect where the kernels are compiled
+afresh (the tests point NUMBA_CACHE_DIR at an empty folder)"""
 
 
 def target_features() -> str:
