@@ -206,18 +206,10 @@ def spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi):
 def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, springs=True):
     """Points ``lo:hi`` gather their spring forces from ``F`` and take their Verlet
     step; without ``springs`` (see :func:`has_springs`) under gravity alone,
-    and ``F``, which then holds the last forces written, is not read."""
+    and ``F``, which then holds the last forces written, is not read (the
+    test is loop-invariant: LLVM keeps a loop for each case)."""
     pad = F.shape[2] - P.shape[1]
     fr = free[lo:]
-    if not springs:
-        for c in range(3):
-            xc, lc = P[c, lo:hi], L[c, lo:]
-            a = gravity[c] * dt2
-            for q in range(hi - lo):
-                xq = xc[q]
-                xc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a)
-                lc[q] = xq
-        return
     for c in range(3):
         xc, lc = P[c, lo:hi], L[c, lo:]
         g = gravity[c]
@@ -229,8 +221,10 @@ def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, springs
         f4a, f4b = F[4, c, b - start[4]:], F[4, c, b - end[4]:]
         f5a, f5b = F[5, c, b - start[5]:], F[5, c, b - end[5]:]
         for q in range(hi - lo):
-            a = (g + (f0a[q] - f0b[q]) + (f1a[q] - f1b[q]) + (f2a[q] - f2b[q])
-                 + (f3a[q] - f3b[q]) + (f4a[q] - f4b[q]) + (f5a[q] - f5b[q]))
+            a = g
+            if springs:
+                a += ((f0a[q] - f0b[q]) + (f1a[q] - f1b[q]) + (f2a[q] - f2b[q])
+                      + (f3a[q] - f3b[q]) + (f4a[q] - f4b[q]) + (f5a[q] - f5b[q]))
             xq = xc[q]
             xc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a * dt2)
             lc[q] = xq
