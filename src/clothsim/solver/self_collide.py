@@ -492,15 +492,14 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
     exact) and the pairs array has room, the bits go straight into it
     (:func:`_put_compressed` or :func:`_put`), without a branch per bit;
     otherwise each goes through the exact tests and the capacity check
-    (:func:`_put_checked`). A ``sparse``
-    build first skips the chunks with no bit: every build that appends with
-    the compress, whose two stores cost more than the branch, and otherwise
-    a build on a hanging cloth (few pairs per point), where the branch is
-    nearly always right; with the scalar append in a crowded build it was
-    wrong about as often as not, and leaving it out made that build a fifth
-    faster. The ranges are walked with unsigned
-    indices: with signed ones numba adds a negative-index wraparound that
-    turns the loads into gathers.
+    (:func:`_put_checked`). A ``sparse`` build first skips the chunks with no
+    bit: every build that appends with the compress, whose two stores cost
+    more than the branch, and otherwise a build on a hanging cloth (few pairs
+    per point), where the branch is nearly always right; with the scalar
+    append in a crowded build it was wrong about as often as not, and leaving
+    it out made that build a fifth faster. The ranges are walked with
+    unsigned indices: with signed ones numba adds a negative-index wraparound
+    that turns the loads into gathers.
     """
     size = grid[3]
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])

@@ -52,6 +52,14 @@ def has_compress() -> bool:
     return "+avx512f" in target_features().split(",")
 
 
+def _vector_at(context, builder, array_type, array, index, vec):
+    """A pointer to ``vec`` (an LLVM vector type) at ``array[index]`` (a list of
+    intp values), unchecked: the lanes are the elements from there on."""
+    a = context.make_array(array_type)(context, builder, array)
+    ptr = cgutils.get_item_pointer(context, builder, array_type, a, index, wraparound=False)
+    return builder.bitcast(ptr, vec.as_pointer())
+
+
 @intrinsic
 def compress_store(typingctx, src, at, dst, row, end, mask):
     """Store the lanes ``src[at:at + LANES]`` whose bit is set in ``mask``, in order,
@@ -66,22 +74,18 @@ def compress_store(typingctx, src, at, dst, row, end, mask):
     def codegen(context, builder, signature, args):
         src_v, at_v, dst_v, row_v, end_v, mask_v = args
         src_t, _, dst_t = signature.args[:3]
-        a = context.make_array(src_t)(context, builder, src_v)
-        d = context.make_array(dst_t)(context, builder, dst_v)
         at_v = context.cast(builder, at_v, signature.args[1], types.intp)
         row_v = context.cast(builder, row_v, signature.args[3], types.intp)
         end_v = context.cast(builder, end_v, signature.args[4], types.intp)
         mask_v = context.cast(builder, mask_v, signature.args[5], types.uint64)
-        from_ptr = cgutils.get_item_pointer(context, builder, src_t, a, [at_v], wraparound=False)
-        to_ptr = cgutils.get_item_pointer(context, builder, dst_t, d, [row_v, end_v], wraparound=False)
         vec = ir.VectorType(ir.IntType(32), LANES)
         bits = ir.VectorType(ir.IntType(1), LANES)
-        lanes = builder.load(builder.bitcast(from_ptr, vec.as_pointer()), align=4)
+        lanes = builder.load(_vector_at(context, builder, src_t, src_v, [at_v], vec), align=4)
         chosen = builder.bitcast(builder.trunc(mask_v, ir.IntType(LANES)), bits)
         fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vec, [vec, vec, bits]),
                                             "llvm.x86.avx512.mask.compress.v16i32")
         packed = builder.call(fn, [lanes, ir.Constant(vec, None), chosen])
-        builder.store(packed, builder.bitcast(to_ptr, vec.as_pointer()), align=4)
+        builder.store(packed, _vector_at(context, builder, dst_t, dst_v, [row_v, end_v], vec), align=4)
         return context.get_dummy_value()
 
     return sig, codegen
@@ -106,9 +110,7 @@ def inside(typingctx, sx, sy, sz, rows, cols, at, x, y, z, row, col, radius2, wr
         start = context.cast(builder, args[5], signature.args[5], types.intp)
 
         def load(k):
-            a = context.make_array(signature.args[k])(context, builder, args[k])
-            ptr = cgutils.get_item_pointer(context, builder, signature.args[k], a, [start], wraparound=False)
-            return builder.load(builder.bitcast(ptr, vec.as_pointer()), align=4)
+            return builder.load(_vector_at(context, builder, signature.args[k], args[k], [start], vec), align=4)
 
         def splat(k):
             v = context.cast(builder, args[k], signature.args[k], types.float32)
