@@ -553,6 +553,36 @@ def test_few_and_many_pushes_move_points_alike(points, parts):
     assert not x.push.any() and not x.count.any()
 
 
+@pytest.mark.parametrize("parts", [1, 2])
+def test_touching_bucket_that_drifts_apart_pushes_only_the_pairs_still_touching(parts):
+    """the pairs that touched at the build are pushed without a branch, and those
+    that no longer touch still pass through the pass: with exactly SPARSE_PAIRS
+    of them touching, listed before the ones that drifted apart, the sparse
+    apply must still move the ends of every touching pair, as brute force does"""
+    from clothsim.solver.self_collide import BUCKET
+    each = SPARSE_PAIRS + 8  # pairs per part
+    pairs = each * parts
+    pos = np.zeros((2 * pairs, 3))
+    pos[0::2, 0] = np.arange(pairs)  # pairs a metre apart along x, each 0.03 across
+    pos[1::2, 0] = np.arange(pairs) + 0.03
+    rest = np.arange(2 * pairs)[:, None] * np.array([[1.0, 1.0, 1.0]])
+    free = np.ones(2 * pairs)
+    x = NeighbourList(2 * pairs, parts=parts)
+    x.pairs, hits = self_collide(planes(pos), rest, free, 0.02, 3, np.inf, *x.buffers())
+    assert hits == pairs and x.meta[BUCKET] == pairs and x.rebuilds == 1
+    moved = pos.copy()
+    drifted = np.arange(pairs) % each >= SPARSE_PAIRS  # the last 8 of each part's pairs
+    moved[2 * np.flatnonzero(drifted) + 1, 0] += 0.011  # past the reach, within the skin
+    expected, hits = reference_self_collision(moved, rest, free, 0.04, 3)
+    assert hits == SPARSE_PAIRS * parts
+    P = planes(moved)
+    x.pairs, found = self_collide(P, rest, free, 0.02, 3, np.inf, *x.buffers())
+    assert x.rebuilds == 1 and found == hits
+    assert np.all(x.tally[:parts, 1] == SPARSE_PAIRS)  # the sparse apply, at its limit
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-13)
+    assert not x.push.any() and not x.count.any()
+
+
 def sorted_pairs(pairs):
     """(2, K) pairs in lexicographic order: builds may list them in any order"""
     return pairs[:, np.lexsort(pairs[::-1])]
