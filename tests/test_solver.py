@@ -755,6 +755,34 @@ def test_near_stencil_skips_only_blocks_the_drift_bound_cannot_bring_within_reac
     assert 1 < lists.rebuilds < 30
 
 
+@pytest.mark.parametrize("parts", [1, 2])
+def test_single_precision_stencil_misses_no_pair_a_hair_inside_the_reach(parts):
+    """between builds the stencil tests its pairs in single precision, which rounds
+    distances by about 1e-7 here: row neighbours set a hair inside the reach (by
+    1e-8 of it) must all still be pushed, and those a hair outside must not"""
+    from clothsim.solver.self_collide import near_stencil
+    n = 40
+    m, _, pos = folded_cloth(n, 0.4655, 1.0)
+    reach = 2 * m.thickness
+    near = near_stencil(m.rest_positions, n, n, m.thickness, 0.75)
+    lists = NeighbourList(m.num_points, n, near, parts, skin=0.75)
+    free = np.ones(m.num_points)
+    P = planes(pos)
+    lists.pairs, _ = self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf, *lists.buffers())
+    rng = np.random.default_rng(7)
+    moved = pos.copy()
+    rows = rng.choice(np.arange(0, n * n, n), size=30, replace=False)  # one pair per grid row
+    for k, a in enumerate(rows + rng.integers(0, n - 1, size=30)):
+        unit = (moved[a + 1] - moved[a]) / np.linalg.norm(moved[a + 1] - moved[a])
+        moved[a + 1] = moved[a] + unit * reach * (1 + (-1e-8 if k % 2 else 1e-8))
+    expected, pairs = reference_self_collision(moved, m.rest_positions, free, reach, 10 ** 9)
+    P = planes(moved)
+    lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf, *lists.buffers())
+    assert lists.rebuilds == 1  # the same list: the stencil ran in single precision
+    assert hits == pairs
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-15)
+
+
 @pytest.mark.parametrize("sparse", [True, False])
 def test_list_build_writes_the_same_pairs_directly_and_stops_at_its_capacity(sparse):
     """on a regular grid the build writes each chunk's bits straight into the pairs

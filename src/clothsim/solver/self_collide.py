@@ -37,7 +37,7 @@ from numba import njit, prange
 from numba.cpython.unsafe.numbers import trailing_zeros
 
 from .grid import BLOCK, KERNEL_OPTIONS, gap2, pop_lowest
-from .simd import LANES, compress_store, has_compress, inside
+from .simd import LANES, close_lanes, compress_store, has_compress, inside
 
 EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
 """for the kernels that test for NaN before turning coordinates into cell
@@ -300,8 +300,14 @@ class NeighbourList:
         if near is None:
             near = (np.zeros(0, np.int64), np.zeros((0, n), np.uint8),
                     np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64), np.zeros(4))
-        self.near_offset, self.near_weight, self.near_table, self.near_metric = near
+        self.near_offset, weight, self.near_table, self.near_metric = near
+        # padded: the single-precision stencil reads up to PAD pairs past the points
+        self.near_weight = np.zeros((len(weight), n + PAD), dtype=np.uint8)
+        self.near_weight[:, :n] = weight
         self.near_masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)
+        # the positions in single precision for the stencil, and each part's extent
+        self.near_pos = np.zeros((3, n + PAD), dtype=np.float32)
+        self.near_extent = np.zeros(parts, dtype=np.int32)  # bits of a float32
         # per offset and block of the stencil: slack level of its closest pair at the build
         self.near_level = np.zeros((len(self.near_offset), n // BLOCK + 1), dtype=np.int32)
         # ends of pushed pairs, and a spare pair that pair_pushes may overwrite
@@ -314,7 +320,8 @@ class NeighbourList:
         return (self.cell_start, self.search, self.order, self.slot, self.sorted_pos,
                 self.reference, self.centres, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
-                self.near_masks, self.near_level, self.touched, self.tally)
+                self.near_masks, self.near_level, self.near_pos, self.near_extent, self.touched,
+                self.tally)
 
     @property
     def rebuilds(self) -> int:
@@ -777,7 +784,8 @@ def _level_both(P, reference, skin, centres):
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, search, order, slot,
                  sorted_pos, reference, centres, pairs, push, count, meta, near_offset,
-                 near_weight, near_table, near_metric, near_masks, near_level, touched, tally):
+                 near_weight, near_table, near_metric, near_masks, near_level, near_pos, near_extent,
+                 touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
@@ -855,11 +863,23 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     # per pair: those pairs hover about the reach, and the branch on whether
     # one touches was mispredicted about as often as not
     touching = meta[BUCKET]
+    single = not fresh and near_offset.shape[0] > 0
+    if single:
+        for t in prange(parts):
+            lo, hi = part_range(n, parts, t)
+            near_extent[t] = _to_single(P, P[0, 0], P[1, 0], P[2, 0], near_pos, lo, hi)
+        # each coordinate from point 0 is rounded by at most extent * 2**-24, and
+        # their difference by a hair more: a pair within reach is always inside
+        extent = np.float64(near_extent.view(np.float32).max())
+        wide = reach * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
+        wide2 = np.float32(wide * wide * (1.0 + 2.0 ** -18))
+    else:
+        wide2 = np.float32(0.0)
     checked = touching if fresh else _checked(meta, reachable * (SLACK_BUCKETS - 1))
     for t in prange(parts):
         h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
                         near_masks[t], t, parts, near_level, fresh, reachable * NEAR_LEVELS,
-                        NEAR_LEVELS / span2)
+                        NEAR_LEVELS / span2, near_pos, wide2, single)
         k0, k1 = part_range(checked, parts, t)
         tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, push[t],
                                       count[t], touched[t], h)
@@ -1146,7 +1166,7 @@ stencil notes how far past the reach each block's closest pair was"""
 
 @njit(**KERNEL_OPTIONS)
 def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, parts, level, fresh, reachable,
-                scale):
+                scale, Q, wide2, single):
     """Add the pushes of the near-stencil pairs closer than ``reach`` to ``push``
     and ``count``, noting their ends in ``touched`` (see :func:`_push`);
     returns how many pairs that was. Only part ``part`` of
@@ -1165,6 +1185,14 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
     on a piled-up 50x50 cloth the diagonal neighbours' blocks, half the
     stencil, sat about half a skin past it. Integer levels, as their minimum
     vectorises where one of doubles does not.
+
+    With ``single`` the check reads ``Q``, the positions in single precision
+    (:func:`_to_single`), against ``wide2``, the squared reach widened past
+    their rounding, LANES pairs at a time (:func:`clothsim.solver.simd.close_lanes`),
+    reading up to PAD slots past the points (``Q`` and ``weight`` are padded).
+    Each pair it lets through is tested again in double precision before it
+    is pushed. The substep of a build, which notes the levels, checks in
+    double precision.
     """
     n = P.shape[1]
     reach2 = reach * reach
@@ -1182,12 +1210,20 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
         # views made once per offset, unsigned indices into them: views made
         # per block cost a tenth of the check on a 50x50 cloth
         xb, yb, zb = x[o:], y[o:], z[o:]
+        qx, qy, qz = Q[0], Q[1], Q[2]
         blocks = 0
         for lo in range(first, stop, BLOCK):
             nb = min(BLOCK, m - lo)
             start = np.uint64(lo)
             mask = np.uint64(0)  # an or of shifted selects vectorises
-            if fresh or level[s, lo // BLOCK] < reachable:
+            if single:
+                if level[s, lo // BLOCK] < reachable:
+                    for c in range(0, BLOCK, LANES):
+                        mask |= close_lanes(qx, qy, qz, ws, start + np.uint64(c), start + np.uint64(c + o),
+                                            wide2) << np.uint64(c)
+                    if nb < BLOCK:  # past the pairs: read (the buffers are padded), not taken
+                        mask &= (np.uint64(1) << np.uint64(nb)) - np.uint64(1)
+            elif fresh or level[s, lo // BLOCK] < reachable:
                 least = cap
                 for p in range(nb):
                     q = start + np.uint64(p)
@@ -1208,6 +1244,30 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
             while mask != 0:
                 j, mask = pop_lowest(mask)
                 a = first + b * BLOCK + j
+                if single:
+                    d2 = gap2(x, y, z, a, x, y, z, a + o)
+                    if not ((d2 < reach2) & (d2 > 0.0)):
+                        continue
                 _push(P, a, a + o, reach, push, count, touched, hits)
                 hits += 1
     return hits
+
+
+@njit(**KERNEL_OPTIONS)
+def _to_single(P, ox, oy, oz, Q, lo, hi):
+    """Points ``lo:hi`` of P from (ox, oy, oz) in single precision into ``Q``; returns
+    the bits of the largest magnitude so written, as an int32. The magnitudes
+    are taken on the bits, whose order is theirs: a maximum of floats does
+    not vectorise, and the pass took six times as long."""
+    most = np.int32(0)
+    m = hi - lo
+    for c in range(3):
+        # views from lo: indexed from lo into the whole planes, the loop ran
+        # scalar inside the substep (4.8 us instead of 0.7 at 50x50)
+        x, q = P[c, lo:hi], Q[c, lo:hi]
+        bits = q.view(np.int32)
+        o = ox if c == 0 else (oy if c == 1 else oz)
+        for p in range(m):
+            q[p] = np.float32(x[p] - o)
+            most = max(most, bits[p] & np.int32(0x7FFFFFFF))
+    return most

@@ -2,7 +2,8 @@
 
 The build tests candidates LANES at a time and keeps a mask of bits, one per
 candidate inside the search sphere (:func:`inside`), then appends the points
-of the set bits to the list (:func:`compress_store`).
+of the set bits to the list (:func:`compress_store`). The near stencil tests
+its pairs the same way (:func:`close_lanes`).
 
 - Written as a loop that ors a shifted bit per lane into a 64-bit mask,
   LLVM vectorises the test but then folds the lanes together in a chain of
@@ -128,6 +129,43 @@ def inside(typingctx, sx, sy, sz, rows, cols, at, x, y, z, row, col, radius2, wr
         grid = builder.fadd(builder.fmul(builder.fmul(dr, dr), splat(12)),
                             builder.fmul(builder.fmul(dc, dc), splat(13)))
         ok = builder.and_(builder.fcmp_ordered("<", d2, splat(11)), builder.fcmp_ordered(">=", grid, splat(14)))
+        return builder.zext(builder.bitcast(ok, ir.IntType(LANES)), ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def close_lanes(typingctx, qx, qy, qz, weight, a, b, limit2):
+    """A bit per lane j < LANES: set where ``weight[a + j]`` is not 0 and points
+    ``a + j`` and ``b + j`` of the float32 (N,) planes (qx, qy, qz) lie closer
+    than ``sqrt(limit2)``; ``weight`` is uint8 (N,). The near stencil's test,
+    in the arithmetic of the scalar form ``dx*dx + dy*dy + dz*dz < limit2``;
+    nothing is bounds-checked."""
+    planes = (qx, qy, qz)
+    if not all(isinstance(q, types.Array) and q.ndim == 1 and q.dtype == types.float32 for q in planes):
+        raise TypingError("close_lanes takes three float32 (N,) arrays")
+    if not (isinstance(weight, types.Array) and weight.ndim == 1 and weight.dtype == types.uint8):
+        raise TypingError("close_lanes takes a uint8 (N,) weight array")
+    sig = types.uint64(qx, qy, qz, weight, a, b, limit2)
+
+    def codegen(context, builder, signature, args):
+        vec = ir.VectorType(ir.FloatType(), LANES)
+        bytes_ = ir.VectorType(ir.IntType(8), LANES)
+        a_v = context.cast(builder, args[4], signature.args[4], types.intp)
+        b_v = context.cast(builder, args[5], signature.args[5], types.intp)
+
+        def load(k, at, kind):
+            return builder.load(_vector_at(context, builder, signature.args[k], args[k], [at], kind), align=1)
+
+        limit = context.cast(builder, args[6], signature.args[6], types.float32)
+        one = builder.insert_element(ir.Constant(vec, ir.Undefined), limit, ir.Constant(ir.IntType(32), 0))
+        splat = builder.shuffle_vector(one, ir.Constant(vec, ir.Undefined),
+                                       ir.Constant(ir.VectorType(ir.IntType(32), LANES), [0] * LANES))
+        d = [builder.fsub(load(k, b_v, vec), load(k, a_v, vec)) for k in range(3)]
+        d2 = builder.fadd(builder.fadd(builder.fmul(d[0], d[0]), builder.fmul(d[1], d[1])),
+                          builder.fmul(d[2], d[2]))
+        taken = builder.icmp_unsigned("!=", load(3, a_v, bytes_), ir.Constant(bytes_, None))
+        ok = builder.and_(builder.fcmp_ordered("<", d2, splat), taken)
         return builder.zext(builder.bitcast(ok, ir.IntType(LANES)), ir.IntType(64))
 
     return sig, codegen

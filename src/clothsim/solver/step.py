@@ -102,7 +102,8 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     ``prange`` hands them to threads.
     """
     (cell_start, search, order, slot, sorted_pos, reference, centres, pairs, push, contacts,
-     meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, touched, tally) = lists
+     meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, near_pos, near_extent,
+     touched, tally) = lists
     parts = push.shape[0]
     _to_planes(pos, P)
     _to_planes(last, L)
@@ -130,7 +131,8 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
                                     search, order, slot, sorted_pos, reference, centres,
                                     pairs, push, contacts, meta, near_offset, near_weight, near_table,
-                                    near_metric, near_masks, near_level, touched, tally)
+                                    near_metric, near_masks, near_level, near_pos, near_extent,
+                                    touched, tally)
         if parts == 1:
             collide_spheres(P, L, free, spheres, 0, n)
             collide_planes(P, L, free, planes, 0, n)
