@@ -863,7 +863,9 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     # per pair: those pairs hover about the reach, and the branch on whether
     # one touches was mispredicted about as often as not
     touching = meta[BUCKET]
-    single = not fresh and near_offset.shape[0] > 0
+    # between builds the near stencil and the pairs that rarely touch are first
+    # tested in single precision (see near_pushes)
+    single = not fresh
     if single:
         for t in prange(parts):
             lo, hi = part_range(n, parts, t)
@@ -882,7 +884,7 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
                         NEAR_LEVELS / span2, near_pos, wide2, single)
         k0, k1 = part_range(checked, parts, t)
         tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, push[t],
-                                      count[t], touched[t], h)
+                                      count[t], touched[t], h, near_pos, wide2, single)
     hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]
@@ -920,7 +922,7 @@ def _copy(src, dst):
 
 
 @njit(**EXACT_OPTIONS)
-def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before):
+def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, wide2, single):
     """Add the pushes of listed pairs ``k0:k1`` closer than ``reach`` to ``push`` (3, N)
     and ``count`` (N,), noting their ends in ``touched`` after those of the
     ``before`` pairs pushed already (see :func:`_push`); returns how many
@@ -931,7 +933,10 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before):
     root and the stores for each, and pays where about half of them touch
     and the branch would be mispredicted as often: on the pairs that
     touched at the build, the pair pass of a piling 50x50 cloth took a
-    sixth less time. Pairs ``sure:k1`` rarely touch and keep the branch.
+    sixth less time. Pairs ``sure:k1`` rarely touch and keep the branch;
+    with ``single`` they are first tested on ``Q``, the positions in single
+    precision, against ``wide2`` (see :func:`near_pushes`): half the memory
+    to gather from, and the pass took 3% less time at 50x50.
     """
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
@@ -953,9 +958,12 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before):
         touched[2 * at] = a
         touched[2 * at + 1] = b
         hits += 1 if close else 0
+    qx, qy, qz = Q[0], Q[1], Q[2]
     for k in range(sure, k1):
         a = np.uint64(pairs[0, k])
         b = np.uint64(pairs[1, k])
+        if single and not gap2(qx, qy, qz, a, qx, qy, qz, b) < wide2:
+            continue
         d2 = gap2(x, y, z, a, x, y, z, b)
         if not ((d2 < reach2) & (d2 != 0.0)):
             continue
