@@ -289,7 +289,10 @@ class NeighbourList:
         self.slot = np.zeros(n, dtype=np.int64)
         # per slot: position from the grid's corner, grid row and column, in single precision
         self.sorted_pos = np.zeros((5, n + PAD), dtype=np.float32)
-        self.reference = np.zeros((3, n))
+        # the positions at the build, in single precision from ``frame``'s origin
+        self.reference = np.zeros((3, n), dtype=np.float32)
+        # the build's origin (x, y, z) and the largest magnitude of a coordinate of reference
+        self.frame = np.zeros(4)
         self.centres = np.zeros((2, 3))  # of the drift test: see _drift_bound
         self.pairs = np.zeros((2, 4 * n), dtype=np.int32)
         self.push = np.zeros((parts, 3, n))
@@ -305,9 +308,10 @@ class NeighbourList:
         self.near_weight = np.zeros((len(weight), n + PAD), dtype=np.uint8)
         self.near_weight[:, :n] = weight
         self.near_masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)
-        # the positions in single precision for the stencil, and each part's extent
+        # the positions in single precision from frame's origin (see self_collide), and
+        # the bits (as of a float32) of each part's largest magnitude of a coordinate
         self.near_pos = np.zeros((3, n + PAD), dtype=np.float32)
-        self.near_extent = np.zeros(parts, dtype=np.int32)  # bits of a float32
+        self.near_extent = np.zeros(parts, dtype=np.int32)
         # per offset and block of the stencil: slack level of its closest pair at the build
         self.near_level = np.zeros((len(self.near_offset), n // BLOCK + 1), dtype=np.int32)
         # ends of pushed pairs, and a spare pair that pair_pushes may overwrite
@@ -318,7 +322,7 @@ class NeighbourList:
     def buffers(self) -> tuple:
         """what :func:`self_collide` takes after ``thickness, simulation_steps, span``"""
         return (self.cell_start, self.search, self.order, self.slot, self.sorted_pos,
-                self.reference, self.centres, self.pairs, self.push, self.count, self.meta,
+                self.reference, self.frame, self.centres, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
                 self.near_masks, self.near_level, self.near_pos, self.near_extent, self.touched,
                 self.tally)
@@ -705,9 +709,12 @@ displacement from its centre, up to (skin/2)²"""
 
 
 @njit(**DRIFT_OPTIONS)
-def _drift_bound(P, reference, skin, centres):
+def _drift_bound(Q, reference, skin, centres, spread):
     """A bound B below ``skin`` on how much closer any two points may have come
     since the list was built, or inf when two may have come closer by ``skin``.
+    ``Q`` and ``reference`` hold the positions now and at the build, in single
+    precision from one origin, each coordinate rounded by less than ``spread``
+    (the sum of their largest magnitudes) times 2**-24.
 
     If every displacement d lies within B/2 of one centre c, any two differ
     by less than B; this holds for any c, so c need not be exact. Two
@@ -715,8 +722,11 @@ def _drift_bound(P, reference, skin, centres):
     (tight when the whole cloth moves alike) and the middle of their box
     (tight when part of the cloth moves and the rest stays, a cloth falling
     onto the floor). The pass takes the largest squared distance from each
-    centre in DRIFT_LEVELS steps, as integers: a maximum of doubles does not
-    vectorise without assuming no NaN, and a NaN must count as drifted.
+    centre in DRIFT_LEVELS steps, as integers: a maximum of floats does not
+    vectorise without assuming no NaN, and a NaN must count as drifted. It
+    reads single precision, sixteen points at a time: in double precision the
+    test took 0.6 us longer a substep at 50x50. B is widened past what the
+    rounding may hide.
 
     ``centres`` (2, 3) keeps the last centres chosen, and they are tried
     first: choosing them from the sample cost half again as much as the
@@ -724,27 +734,34 @@ def _drift_bound(P, reference, skin, centres):
     next, so old centres mostly still hold. Only when neither does are
     new ones chosen and tried.
     """
-    level = _level_both(P, reference, skin, centres)
+    level = _level_both(Q, reference, skin, centres)
     if level >= DRIFT_LEVELS:
-        _choose_centres(P, reference, centres)
-        level = _level_both(P, reference, skin, centres)
+        _choose_centres(Q, reference, centres)
+        level = _level_both(Q, reference, skin, centres)
         if level >= DRIFT_LEVELS:
             return np.inf
     # every squared distance from the centre is below (level + 1) steps of (skin/2)²
-    return skin * np.sqrt((level + 1.0) / DRIFT_LEVELS)
+    bound = skin * np.sqrt((level + 1.0) / DRIFT_LEVELS)
+    largest = 0.0
+    for c in range(3):
+        largest = max(largest, abs(centres[0, c]), abs(centres[1, c]))
+    # a displacement is rounded by (spread + its magnitude) * 2**-24 per coordinate, a
+    # centre by its magnitude * 2**-24, the distance between them relatively by a few
+    # 2**-24: far less than this
+    return bound * (1.0 + 2.0 ** -18) + (spread + skin + 2.0 * largest) * 2.0 ** -18
 
 
 @njit(**DRIFT_OPTIONS)
-def _choose_centres(P, reference, centres):
+def _choose_centres(Q, reference, centres):
     """The mean and the box middle of a sample of the displacements, into ``centres``."""
-    n = P.shape[1]
+    n = reference.shape[1]
     step = max(1, n // DRIFT_SAMPLE)
     for c in range(3):
         s, lo, hi = 0.0, np.inf, -np.inf
-        x, r = P[c], reference[c]
+        x, r = Q[c], reference[c]
         k = 0
         for p in range(0, n, step):
-            d = x[p] - r[p]
+            d = np.float64(x[p] - r[p])
             s += d
             lo = d if d < lo else lo
             hi = d if d > hi else hi
@@ -754,16 +771,17 @@ def _choose_centres(P, reference, centres):
 
 
 @njit(**DRIFT_OPTIONS)
-def _level_both(P, reference, skin, centres):
+def _level_both(Q, reference, skin, centres):
     """How many DRIFT_LEVELS steps of (skin/2)² the displacements reach from the
     better of the two centres: DRIFT_LEVELS when one lies at skin/2 or farther
     from both, or is not finite."""
-    n = P.shape[1]
-    scale = DRIFT_LEVELS / (0.25 * skin * skin)
-    top = np.float64(DRIFT_LEVELS)
-    m0, m1, m2 = centres[0, 0], centres[0, 1], centres[0, 2]
-    c0, c1, c2 = centres[1, 0], centres[1, 1], centres[1, 2]
-    x, y, z = P[0], P[1], P[2]
+    n = reference.shape[1]
+    f32 = np.float32
+    scale = f32(DRIFT_LEVELS / (0.25 * skin * skin))
+    top = f32(DRIFT_LEVELS)
+    m0, m1, m2 = f32(centres[0, 0]), f32(centres[0, 1]), f32(centres[0, 2])
+    c0, c1, c2 = f32(centres[1, 0]), f32(centres[1, 1]), f32(centres[1, 2])
+    x, y, z = Q[0], Q[1], Q[2]
     rx, ry, rz = reference[0], reference[1], reference[2]
     cap = np.int32(DRIFT_LEVELS)
     worst_mean = np.int32(0)
@@ -783,7 +801,7 @@ def _level_both(P, reference, skin, centres):
 
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, search, order, slot,
-                 sorted_pos, reference, centres, pairs, push, count, meta, near_offset,
+                 sorted_pos, reference, frame, centres, pairs, push, count, meta, near_offset,
                  near_weight, near_table, near_metric, near_masks, near_level, near_pos, near_extent,
                  touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
@@ -805,7 +823,12 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     parts = push.shape[0]
     reach = 2.0 * thickness
     skin = 0.001 * meta[SKIN] * reach
-    bound = np.inf if meta[VALID] == 0 else _drift_bound(P, reference, skin, centres)
+    # the positions in single precision, from the last build's origin: the drift
+    # test, the near stencil and the pairs that rarely touch read them (see
+    # _drift_bound, near_pushes, pair_pushes)
+    extent = _single(P, frame, near_pos, near_extent)
+    bound = np.inf if meta[VALID] == 0 else _drift_bound(near_pos, reference, skin, centres,
+                                                         extent + frame[3])
     fresh = not bound < skin
     if fresh:
         radius = reach + skin
@@ -838,7 +861,10 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
             size = 2 * most
             pairs = np.empty((2, shares * size), dtype=np.int32)
         meta[PAIRS] = _close_up(pairs, tally, size)
-        _copy(P, reference)
+        frame[:3] = P[:, 0]
+        extent = _single(P, frame, near_pos, near_extent)
+        frame[3] = extent
+        _copy(near_pos[:, :n], reference)
         centres[:] = 0.0
         meta[VALID] = 1
         meta[REBUILDS] += 1
@@ -867,12 +893,8 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     # tested in single precision (see near_pushes)
     single = not fresh
     if single:
-        for t in prange(parts):
-            lo, hi = part_range(n, parts, t)
-            near_extent[t] = _to_single(P, P[0, 0], P[1, 0], P[2, 0], near_pos, lo, hi)
-        # each coordinate from point 0 is rounded by at most extent * 2**-24, and
-        # their difference by a hair more: a pair within reach is always inside
-        extent = np.float64(near_extent.view(np.float32).max())
+        # each coordinate is rounded by at most extent * 2**-24, and their
+        # difference by a hair more: a pair within reach is always inside
         wide = reach * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
         wide2 = np.float32(wide * wide * (1.0 + 2.0 ** -18))
     else:
@@ -1259,6 +1281,19 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
                 _push(P, a, a + o, reach, push, count, touched, hits)
                 hits += 1
     return hits
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _single(P, frame, Q, extent):
+    """P from the origin ``frame[:3]`` in single precision into ``Q``, cut into as many
+    parts as ``extent`` has (``prange`` where inlined into parallel code),
+    each noting the bits of its largest magnitude there; returns the largest."""
+    parts = extent.shape[0]
+    n = P.shape[1]
+    for t in prange(parts):
+        lo, hi = part_range(n, parts, t)
+        extent[t] = _to_single(P, frame[0], frame[1], frame[2], Q, lo, hi)
+    return np.float64(extent.view(np.float32).max())
 
 
 @njit(**KERNEL_OPTIONS)

@@ -101,7 +101,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     parts one after another, and as :func:`advance_parallel`, where each
     ``prange`` hands them to threads.
     """
-    (cell_start, search, order, slot, sorted_pos, reference, centres, pairs, push, contacts,
+    (cell_start, search, order, slot, sorted_pos, reference, frame, centres, pairs, push, contacts,
      meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, near_pos, near_extent,
      touched, tally) = lists
     parts = push.shape[0]
@@ -129,7 +129,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
             _hold(P, handle, handle_pos)
         if self_collision:
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
-                                    search, order, slot, sorted_pos, reference, centres,
+                                    search, order, slot, sorted_pos, reference, frame, centres,
                                     pairs, push, contacts, meta, near_offset, near_weight, near_table,
                                     near_metric, near_masks, near_level, near_pos, near_extent,
                                     touched, tally)
