@@ -56,7 +56,7 @@ for the cloth to count as coarse"""
 
 CELL_FACTOR = 2.0
 """cell size over the search radius: each point then looks in 2x2 rows of cells
-(at least 2: the ``search`` flags of :func:`_sort_into_cells` take a sphere to
+(at least 2: the ``search`` bits of :func:`_sort_into_cells` take a sphere to
 reach at most one cell past its own along y and z)"""
 
 X_SPLIT = 4
@@ -66,11 +66,13 @@ memory, so narrow cells only trim the range to the search sphere's width
 200x200 one, than with cubic cells; 6 and 8 gained no more)"""
 
 SEARCH_ROWS = 5
-UP, DOWN, FAR = 1, 2, 4
 """the rows of ``search``: a point's cell, the first cell of its row of cells,
 the first and one past the last column of cells its search sphere overlaps,
-and flags: that sphere also overlaps the row above along y (UP), the one
-below (DOWN), the next layer along z (FAR)"""
+and a bit per row of cells :func:`query_points` may search (its ``rows``):
+the point's own (always), the next along y, and those of the next layer
+along z below, at and above the point's row. The query walks the set bits:
+tested one by one, the rows' conditions cost a mispredicted branch or two
+per point, and the build took 5% longer"""
 
 CELLS_PER_POINT = 8
 """most grid cells per point; a cloth spread wider gets coarser cells"""
@@ -379,7 +381,7 @@ def _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sor
     cell_start[:cells + 1] = 0
     x, y, z = P[0], P[1], P[2]
     x0, y0, z0 = lo[0], lo[1], lo[2]
-    cell_of, row_of, first_x, past_x, more = search[0], search[1], search[2], search[3], search[4]
+    cell_of, row_of, first_x, past_x, rows = search[0], search[1], search[2], search[3], search[4]
     for p in range(n):  # apart from the counting below, which does not vectorise
         ix = max(min(np.int64((x[p] - x0) * inv_x), nx - 1), 0)
         iy = max(min(np.int64((y[p] - y0) * inv), ny - 1), 0)
@@ -396,7 +398,7 @@ def _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sor
         up = min(np.int64((y[p] + radius - y0) * inv), ny - 1) > iy
         down = np.int64(max((y[p] - radius - y0) * inv, 0.0)) < iy
         far = min(np.int64((z[p] + radius - z0) * inv), nz - 1) > iz
-        more[p] = (UP if up else 0) | (DOWN if down else 0) | (FAR if far else 0)
+        rows[p] = 1 | (2 if up else 0) | (4 if far and down else 0) | (8 if far else 0) | (16 if far and up else 0)
     for p in range(n):
         cell_start[cell_of[p] + 1] += 1
     for c in range(1, cells + 1):
@@ -535,12 +537,9 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
         p = np.uint64(pk)
         k = slot[p]
         own = (sx[k], sy[k], sz[k], grid_row[k], grid_col[k])
-        row_of, ix0, ix1, more = search[1, p], search[2, p], search[3, p], search[4, p]
-        up, down, far = (more & UP) != 0, (more & DOWN) != 0, (more & FAR) != 0
-        for r in range(5):
-            if not (r == 0 or (r == 1 and up) or (r == 2 and far and down) or (r == 3 and far)
-                    or (r == 4 and far and up)):
-                continue
+        row_of, ix0, ix1, bits = search[1, p], search[2, p], search[3, p], np.uint64(search[4, p])
+        while bits != 0:
+            r, bits = pop_lowest(bits)
             row = np.uint64(row_of + rows[r])
             # each pair once: in the point's own row only the slots after its own
             lo = cell_start[row + np.uint64(ix0)]
