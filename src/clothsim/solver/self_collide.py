@@ -93,6 +93,11 @@ DENSE_LIST = 0.4
 compress (see COMPRESS), no longer tests a chunk's bits for none before
 writing them: see :func:`query_points`"""
 
+DENSE_COMPRESSED = 1.0
+"""DENSE_LIST where the build appends with the compress: a piled-up 50x50 cloth
+(1.4 pairs a point) built its list 13% faster without the test, a hanging
+100x100 one (0.26) a fifth slower"""
+
 QUERY_SHARES = 4
 """shares of the list build per thread, where there is more than one"""
 
@@ -507,11 +512,10 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
     (:func:`_put_compressed` or :func:`_put`), without a branch per bit;
     otherwise each goes through the exact tests and the capacity check
     (:func:`_put_checked`). A ``sparse`` build first skips the chunks with no
-    bit: every build that appends with the compress, whose two stores cost
-    more than the branch, and otherwise a build on a hanging cloth (few pairs
-    per point), where the branch is nearly always right; with the scalar
-    append in a crowded build it was wrong about as often as not, and leaving
-    it out made that build a fifth faster. The ranges are walked with
+    bit: a build on a hanging cloth (few pairs per point), where that branch
+    is nearly always right. In a crowded build it was wrong about as often as
+    not, and leaving it out made the build a fifth faster with the scalar
+    append, 13% with the compress (see DENSE_LIST, DENSE_COMPRESSED). The ranges are walked with
     unsigned indices: with signed ones numba adds a negative-index wraparound
     that turns the loads into gathers.
     """
@@ -840,11 +844,9 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
         # cost of a share depends on how crowded its part of the cloth is
         shares = tally.shape[0]
         size = pairs.shape[1] // shares
-        # skip a chunk with no pair before appending: always with the compress
-        # (in a running simulation the build of a piling 100x100 cloth took 5-10%
-        # less time, of a hanging one a fifth, at 50x50 the same), without it only
-        # where the last list's density says chunks are mostly empty
-        sparse = COMPRESS or meta[PAIRS] < DENSE_LIST * n
+        # skip a chunk with no pair before appending only where the last list's
+        # density says chunks are mostly empty
+        sparse = meta[PAIRS] < (DENSE_COMPRESSED if COMPRESS else DENSE_LIST) * n
         while True:  # once more with room for twice the largest share when one overflowed
             for t in prange(parts):
                 for j in range(t, shares, parts):
