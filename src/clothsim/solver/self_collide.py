@@ -317,8 +317,8 @@ class NeighbourList:
         self.near_masks = np.zeros((parts, n // BLOCK + 2), dtype=np.uint64)
         # the positions in single precision from frame's origin (see self_collide), and
         # the bits (as of a float32) of each part's largest magnitude of a coordinate
-        self.near_pos = np.zeros((3, n + PAD), dtype=np.float32)
-        self.near_extent = np.zeros(parts, dtype=np.int32)
+        self.pos32 = np.zeros((3, n + PAD), dtype=np.float32)
+        self.extent32 = np.zeros(parts, dtype=np.int32)
         # per offset and block of the stencil: slack level of its closest pair at the build
         self.near_level = np.zeros((len(self.near_offset), n // BLOCK + 1), dtype=np.int32)
         # ends of pushed pairs, and a spare pair that pair_pushes may overwrite
@@ -331,7 +331,7 @@ class NeighbourList:
         return (self.cell_start, self.search, self.order, self.slot, self.sorted_pos,
                 self.reference, self.frame, self.centres, self.pairs, self.push, self.count, self.meta,
                 self.near_offset, self.near_weight, self.near_table, self.near_metric,
-                self.near_masks, self.near_level, self.near_pos, self.near_extent, self.touched,
+                self.near_masks, self.near_level, self.pos32, self.extent32, self.touched,
                 self.tally)
 
     @property
@@ -403,7 +403,8 @@ def _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sor
         up = min(np.int64((y[p] + radius - y0) * inv), ny - 1) > iy
         down = np.int64(max((y[p] - radius - y0) * inv, 0.0)) < iy
         far = min(np.int64((z[p] + radius - z0) * inv), nz - 1) > iz
-        rows[p] = 1 | (2 if up else 0) | (4 if far and down else 0) | (8 if far else 0) | (16 if far and up else 0)
+        rows[p] = (1 | (2 if up else 0) | (4 if far and down else 0) | (8 if far else 0)
+                   | (16 if far and up else 0))
     for p in range(n):
         cell_start[cell_of[p] + 1] += 1
     for c in range(1, cells + 1):
@@ -515,9 +516,9 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
     bit: a build on a hanging cloth (few pairs per point), where that branch
     is nearly always right. In a crowded build it was wrong about as often as
     not, and leaving it out made the build a fifth faster with the scalar
-    append, 13% with the compress (see DENSE_LIST, DENSE_COMPRESSED). The ranges are walked with
-    unsigned indices: with signed ones numba adds a negative-index wraparound
-    that turns the loads into gathers.
+    append, 13% with the compress (see DENSE_LIST, DENSE_COMPRESSED). The
+    ranges are walked with unsigned indices: with signed ones numba adds a
+    negative-index wraparound that turns the loads into gathers.
     """
     size = grid[3]
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
@@ -805,7 +806,7 @@ def _level_both(Q, reference, skin, centres):
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, search, order, slot,
                  sorted_pos, reference, frame, centres, pairs, push, count, meta, near_offset,
-                 near_weight, near_table, near_metric, near_masks, near_level, near_pos, near_extent,
+                 near_weight, near_table, near_metric, near_masks, near_level, pos32, extent32,
                  touched, tally):
     """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
@@ -829,8 +830,8 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     # the positions in single precision, from the last build's origin: the drift
     # test, the near stencil and the pairs that rarely touch read them (see
     # _drift_bound, near_pushes, pair_pushes)
-    extent = _single(P, frame, near_pos, near_extent)
-    bound = np.inf if meta[VALID] == 0 else _drift_bound(near_pos, reference, skin, centres,
+    extent = _single(P, frame, pos32, extent32)
+    bound = np.inf if meta[VALID] == 0 else _drift_bound(pos32, reference, skin, centres,
                                                          extent + frame[3])
     fresh = not bound < skin
     if fresh:
@@ -863,9 +864,9 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
             pairs = np.empty((2, shares * size), dtype=np.int32)
         meta[PAIRS] = _close_up(pairs, tally, size)
         frame[:3] = P[:, 0]
-        extent = _single(P, frame, near_pos, near_extent)
+        extent = _single(P, frame, pos32, extent32)
         frame[3] = extent
-        _copy(near_pos[:, :n], reference)
+        _copy(pos32[:, :n], reference)
         centres[:] = 0.0
         meta[VALID] = 1
         meta[REBUILDS] += 1
@@ -904,10 +905,10 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     for t in prange(parts):
         h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
                         near_masks[t], t, parts, near_level, fresh, reachable * NEAR_LEVELS,
-                        NEAR_LEVELS / span2, near_pos, wide2, single)
+                        NEAR_LEVELS / span2, pos32, wide2, single)
         k0, k1 = part_range(checked, parts, t)
         tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, push[t],
-                                      count[t], touched[t], h, near_pos, wide2, single)
+                                      count[t], touched[t], h, pos32, wide2, single)
     hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]
@@ -1030,9 +1031,9 @@ def _sort_by_slack(pairs, labels, listed, meta, parts):
     before two points have come closer by that much; :func:`_drift_bound`
     bounds by how much any two have, so each substep only checks the buckets
     that bound reaches (see :func:`self_collide`). Pairs that touched at the
-    build come first: they touch for many substeps on end, and in one run
-    their branch is rarely mispredicted. Runs once after each build; its
-    scratch is allocated here, as the list may have grown.
+    build come first: every substep checks them, without a branch (see
+    :func:`pair_pushes`). Runs once after each build; its scratch is
+    allocated here, as the list may have grown.
 
     A counting sort cut into ``parts`` (``prange`` where inlined into
     parallel code), each walking SORT_LANES runs of its range side by side

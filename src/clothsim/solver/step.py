@@ -102,7 +102,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
     ``prange`` hands them to threads.
     """
     (cell_start, search, order, slot, sorted_pos, reference, frame, centres, pairs, push, contacts,
-     meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, near_pos, near_extent,
+     meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, pos32, extent32,
      touched, tally) = lists
     parts = push.shape[0]
     _to_planes(pos, P)
@@ -131,7 +131,7 @@ def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, subste
             pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
                                     search, order, slot, sorted_pos, reference, frame, centres,
                                     pairs, push, contacts, meta, near_offset, near_weight, near_table,
-                                    near_metric, near_masks, near_level, near_pos, near_extent,
+                                    near_metric, near_masks, near_level, pos32, extent32,
                                     touched, tally)
         if parts == 1:
             collide_spheres(P, L, free, spheres, 0, n)
