@@ -891,24 +891,20 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     # per pair: those pairs hover about the reach, and the branch on whether
     # one touches was mispredicted about as often as not
     touching = meta[BUCKET]
-    # between builds the near stencil and the pairs that rarely touch are first
-    # tested in single precision (see near_pushes)
-    single = not fresh
-    if single:
-        # each coordinate is rounded by at most extent * 2**-24, and their
-        # difference by a hair more: a pair within reach is always inside
-        wide = reach * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
-        wide2 = np.float32(wide * wide * (1.0 + 2.0 ** -18))
-    else:
-        wide2 = np.float32(0.0)
+    # the pairs that rarely touch and, between builds, the near stencil are first
+    # tested in single precision (see near_pushes); each coordinate is rounded by
+    # at most extent * 2**-24, and their difference by a hair more: a pair within
+    # reach is always inside the widened reach
+    wide = reach * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
+    wide2 = np.float32(wide * wide * (1.0 + 2.0 ** -18))
     checked = touching if fresh else _checked(meta, reachable * (SLACK_BUCKETS - 1))
     for t in prange(parts):
         h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
                         near_masks[t], t, parts, near_level, fresh, reachable * NEAR_LEVELS,
-                        NEAR_LEVELS / span2, pos32, wide2, single)
+                        NEAR_LEVELS / span2, pos32, wide2, not fresh)
         k0, k1 = part_range(checked, parts, t)
         tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, push[t],
-                                      count[t], touched[t], h, pos32, wide2, single)
+                                      count[t], touched[t], h, pos32, wide2)
     hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]
@@ -946,7 +942,7 @@ def _copy(src, dst):
 
 
 @njit(**EXACT_OPTIONS)
-def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, wide2, single):
+def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, wide2):
     """Add the pushes of listed pairs ``k0:k1`` closer than ``reach`` to ``push`` (3, N)
     and ``count`` (N,), noting their ends in ``touched`` after those of the
     ``before`` pairs pushed already (see :func:`_push`); returns how many
@@ -958,9 +954,9 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, 
     and the branch would be mispredicted as often: on the pairs that
     touched at the build, the pair pass of a piling 50x50 cloth took a
     sixth less time. Pairs ``sure:k1`` rarely touch and keep the branch;
-    with ``single`` they are first tested on ``Q``, the positions in single
-    precision, against ``wide2`` (see :func:`near_pushes`): half the memory
-    to gather from, and the pass took 3% less time at 50x50.
+    they are first tested on ``Q``, the positions in single precision,
+    against ``wide2`` (see :func:`near_pushes`): half the memory to gather
+    from, and the pass took 3% less time at 50x50.
     """
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
@@ -986,7 +982,7 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, 
     for k in range(sure, k1):
         a = np.uint64(pairs[0, k])
         b = np.uint64(pairs[1, k])
-        if single and not gap2(qx, qy, qz, a, qx, qy, qz, b) < wide2:
+        if not gap2(qx, qy, qz, a, qx, qy, qz, b) < wide2:
             continue
         d2 = gap2(x, y, z, a, x, y, z, b)
         if not ((d2 < reach2) & (d2 != 0.0)):
