@@ -339,6 +339,16 @@ class NeighbourList:
         return int(self.meta[REBUILDS])
 
 
+@njit(cache=True, inline="always")
+def widened2(radius, extent):
+    """The square of ``radius`` widened past the rounding of single-precision
+    coordinates of magnitude up to ``extent`` (each rounded by at most
+    extent * 2**-24, their differences by a hair more), as a float32 rounded
+    up: a pair closer than ``radius`` always tests closer in single precision."""
+    wide = radius * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
+    return np.float32(wide * wide * (1.0 + 2.0 ** -18))
+
+
 @njit(**EXACT_OPTIONS)
 def _sort_into_cells(P, radius, span, cols, cell_start, search, order, slot, sorted_pos):
     """Counting-sort the points into a dense grid of cells over their bounding box.
@@ -524,9 +534,8 @@ def query_points(grid, reach, radius, rest, cell_start, search, slot, order, sor
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
     # each coordinate from the corner is rounded by at most extent * 2**-24
     extent = max(nx * size / X_SPLIT, ny * size, nz * size)
-    wide = radius * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
     f32 = np.float32
-    metric = (f32(wide * wide), f32(near_metric[0]), f32(near_metric[1]), f32(near_metric[2]))
+    metric = (widened2(radius, extent), f32(near_metric[0]), f32(near_metric[1]), f32(near_metric[2]))
     sx, sy, sz, grid_row, grid_col = sorted_pos[0], sorted_pos[1], sorted_pos[2], sorted_pos[3], sorted_pos[4]
     columns = (sx, sy, sz, grid_row, grid_col)
     reach2 = reach * reach
@@ -892,11 +901,8 @@ def self_collide(P, rest, free, thickness, simulation_steps, span, cell_start, s
     # one touches was mispredicted about as often as not
     touching = meta[BUCKET]
     # the pairs that rarely touch and, between builds, the near stencil are first
-    # tested in single precision (see near_pushes); each coordinate is rounded by
-    # at most extent * 2**-24, and their difference by a hair more: a pair within
-    # reach is always inside the widened reach
-    wide = reach * (1.0 + 2.0 ** -18) + 4.0 * extent * 2.0 ** -23
-    wide2 = np.float32(wide * wide * (1.0 + 2.0 ** -18))
+    # tested in single precision (see near_pushes)
+    wide2 = widened2(reach, extent)
     checked = touching if fresh else _checked(meta, reachable * (SLACK_BUCKETS - 1))
     for t in prange(parts):
         h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],

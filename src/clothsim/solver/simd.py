@@ -61,6 +61,13 @@ def _vector_at(context, builder, array_type, array, index, vec):
     return builder.bitcast(ptr, vec.as_pointer())
 
 
+def _splat(builder, value, vec):
+    """``value`` in every lane of ``vec`` (an LLVM vector type)."""
+    one = builder.insert_element(ir.Constant(vec, ir.Undefined), value, ir.Constant(ir.IntType(32), 0))
+    return builder.shuffle_vector(one, ir.Constant(vec, ir.Undefined),
+                                  ir.Constant(ir.VectorType(ir.IntType(32), vec.count), [0] * vec.count))
+
+
 @intrinsic
 def compress_store(typingctx, src, at, dst, row, end, mask):
     """Store the lanes ``src[at:at + LANES]`` whose bit is set in ``mask``, in order,
@@ -114,10 +121,7 @@ def inside(typingctx, sx, sy, sz, rows, cols, at, x, y, z, row, col, radius2, wr
             return builder.load(_vector_at(context, builder, signature.args[k], args[k], [start], vec), align=4)
 
         def splat(k):
-            v = context.cast(builder, args[k], signature.args[k], types.float32)
-            one = builder.insert_element(ir.Constant(vec, ir.Undefined), v, ir.Constant(ir.IntType(32), 0))
-            return builder.shuffle_vector(one, ir.Constant(vec, ir.Undefined),
-                                          ir.Constant(ir.VectorType(ir.IntType(32), LANES), [0] * LANES))
+            return _splat(builder, context.cast(builder, args[k], signature.args[k], types.float32), vec)
 
         sx_v, sy_v, sz_v, rows_v, cols_v = (load(k) for k in range(5))
         dx = builder.fsub(splat(6), sx_v)
@@ -157,10 +161,7 @@ def close_lanes(typingctx, qx, qy, qz, weight, a, b, limit2):
         def load(k, at, kind):
             return builder.load(_vector_at(context, builder, signature.args[k], args[k], [at], kind), align=1)
 
-        limit = context.cast(builder, args[6], signature.args[6], types.float32)
-        one = builder.insert_element(ir.Constant(vec, ir.Undefined), limit, ir.Constant(ir.IntType(32), 0))
-        splat = builder.shuffle_vector(one, ir.Constant(vec, ir.Undefined),
-                                       ir.Constant(ir.VectorType(ir.IntType(32), LANES), [0] * LANES))
+        splat = _splat(builder, context.cast(builder, args[6], signature.args[6], types.float32), vec)
         d = [builder.fsub(load(k, b_v, vec), load(k, a_v, vec)) for k in range(3)]
         d2 = builder.fadd(builder.fadd(builder.fmul(d[0], d[0]), builder.fmul(d[1], d[1])),
                           builder.fmul(d[2], d[2]))
