@@ -5,6 +5,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from . import kernel_cache
+kernel_cache.configure()  # before the decorator: see kernel_cache
+
 
 @njit(cache=True, fastmath=True, boundscheck=False)
 def vertex_normals(pos, triangles, out):
