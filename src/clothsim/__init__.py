@@ -9,7 +9,21 @@ except PackageNotFoundError:  # running from a source tree
 
 from .errors import ClothsimError, RenderError, SceneError, SimulationError
 from .scene import Scene, load_scene, parse_scene
-from .simulation import Params, Simulation
+
+_LAZY = {"Params": "simulation", "Simulation": "simulation"}
+"""names imported on first use: the simulation pulls in numba and the kernels,
+which ``clothsim --help`` and ``--version`` must not wait for"""
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        from importlib import import_module
+
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["ClothsimError", "RenderError", "Params", "Scene", "SceneError", "Simulation",
            "SimulationError", "load_scene", "parse_scene", "__version__"]
