@@ -10,7 +10,8 @@ import pytest
 import numpy as np
 
 from clothsim import Simulation, __version__
-from clothsim.cli import main, run_with_progress
+from clothsim.cli import main
+from clothsim.cli.common import run_with_progress
 
 from .conftest import SCENES, small_scene
 
@@ -118,3 +119,40 @@ def test_module_runs_without_traceback_on_missing_file(tmp_path):
     r = subprocess.run([sys.executable, "-m", "clothsim", "simulate", str(tmp_path / "x.json")],
                        capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no such file" in r.stderr
+
+
+@pytest.mark.parametrize("flag", ["--help", "--version"])
+def test_help_and_version_load_no_numba(flag):
+    """--help and --version answer without importing numba (nor numpy or a GL library)"""
+    code = ("import sys\nfrom clothsim.cli import main\n"
+            f"try:\n    main([{flag!r}])\nexcept SystemExit as e:\n    assert e.code == 0, e.code\n"
+            "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'numba', 'numpy', 'moderngl', 'PIL', 'tqdm'})\n"
+            "print('HEAVY', heavy)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().splitlines()[-1] == "HEAVY []"
+
+
+@pytest.mark.parametrize("flag", ["--help", "--version"])
+def test_help_and_version_answer_in_half_a_second(flag):
+    """the installed command answers --help and --version in under 0.5 s (best of three)"""
+    import time
+
+    walls = []
+    for _ in range(3):
+        start = time.perf_counter()
+        r = subprocess.run(["clothsim", flag], capture_output=True, text=True)
+        walls.append(time.perf_counter() - start)
+        assert r.returncode == 0
+    assert min(walls) < 0.5, walls
+
+
+def test_every_subcommand_has_help(capsys):
+    """each subcommand answers --help with exit 0 and names its scene argument"""
+    for command in ("simulate", "render", "sweep", "view", "scenes"):
+        with pytest.raises(SystemExit) as done:
+            main([command, "--help"])
+        assert done.value.code == 0
+        out = capsys.readouterr().out
+        assert out.startswith(f"usage: clothsim {command}")
+        assert command == "scenes" or "standard scene" in out

@@ -4,31 +4,30 @@ from __future__ import annotations
 
 import argparse
 
+from ..errors import UsageError
+from ..outputs import check_writable
+from .common import add_scene_arg, add_simulation_args, load_simulation, parse_size
 
-def add_view_parser(sub) -> None:
+
+def add_parser(sub) -> None:
     p = sub.add_parser("view", help="open the interactive viewer",
                        description="Simulate and draw a scene in a window, with a panel for every parameter.")
-    p.add_argument("scene", help="scene file (CS184 ClothSim JSON)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
-    p.add_argument("--no-self-collision", action="store_true")
-    p.add_argument("--shader", default="Phong")
+    add_scene_arg(p)
+    add_simulation_args(p)
+    p.add_argument("--shader", default="Phong", help="shader shown first (default Phong)")
     p.add_argument("--shaders", action="append", default=[], metavar="DIR",
                    help="folder of Name.vert/Name.frag files searched before the built-in ones")
-    p.add_argument("--size", default="1280x800", help="window size WIDTHxHEIGHT")
+    p.add_argument("--size", default="1280x800", help="window size WIDTHxHEIGHT (default 1280x800)")
     p.add_argument("--frames", type=int, metavar="N", help="scripted: run N frames, then exit")
     p.add_argument("--keys", default="", help='scripted: keys pressed before frames 1, 2, ... e.g. "p,n,r"')
     p.add_argument("--screenshot", metavar="OUT.png", help="scripted: save the last frame, panel included")
     p.add_argument("--overwrite", action="store_true", help="replace an existing screenshot file")
-    p.set_defaults(func=cmd_view)
+    p.set_defaults(func=run)
 
 
-def cmd_view(args: argparse.Namespace) -> int:
-    from ..errors import UsageError
-    from ..outputs import check_writable
-    from ..render.cli import _size
+def run(args: argparse.Namespace) -> int:
     from ..render.shaders import ShaderLibrary
-    from ..simulation import Simulation
-    from .app import KEY_NAMES, ViewerApp, require_display
+    from ..viewer.app import KEY_NAMES, ViewerApp, require_display
 
     keys = [k.strip().lower() for k in args.keys.split(",") if k.strip()]
     for k in keys:
@@ -40,14 +39,13 @@ def cmd_view(args: argparse.Namespace) -> int:
         raise UsageError("--keys and --screenshot need --frames N (scripted mode)")
     if args.screenshot:
         check_writable(args.screenshot, args.overwrite)
+    size = parse_size(args.size)
     require_display()
-    sim = Simulation.from_file(args.scene, args.overrides)
-    if args.no_self_collision:
-        sim.params.self_collision = False
+    sim = load_simulation(args)
     library = ShaderLibrary(args.shaders)
     if args.shader not in library.names():
         raise UsageError(f"--shader: unknown shader {args.shader!r}; available: {', '.join(library.names())}")
-    app = ViewerApp(sim, size=_size(args.size), shaders=library, shader=args.shader)
+    app = ViewerApp(sim, size=size, shaders=library, shader=args.shader)
     try:
         if args.frames is None:
             app.run()

@@ -4,19 +4,19 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
+
+from ..errors import UsageError
+from .common import add_scene_arg, check_seconds, parse_size, progress_bar, scene_path
 
 
-def add_sweep_parser(sub) -> None:
+def add_parser(sub) -> None:
     p = sub.add_parser(
         "sweep", help="run every combination of scene values in parallel (locally or on Dask)",
         description="Simulate and render the cross product of --vary lists; write one PNG and OBJ per run, "
                     "runs.csv with measured results and a labelled sheet.png into OUTDIR.")
-    p.add_argument("scene", help="scene file (CS184 ClothSim JSON)")
+    add_scene_arg(p, set_help="a value shared by every run")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2|START:STOP:COUNT", required=True,
                    help="values of one dotted scene key (repeat for a cross product)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="a value shared by every run")
     p.add_argument("--seconds", type=float, default=2.0, help="simulated time per run (default 2)")
     p.add_argument("--shader", default="Phong", help="shader of the images (default Phong)")
     p.add_argument("--size", default="400x400", help="image size per run (default 400x400)")
@@ -27,36 +27,31 @@ def add_sweep_parser(sub) -> None:
                    help="send the runs to this Dask distributed scheduler instead")
     p.add_argument("--force", action="store_true", help="redo runs already in OUTDIR and replace their files")
     p.add_argument("--no-progress", action="store_true")
-    p.set_defaults(func=cmd_sweep)
+    p.set_defaults(func=run)
 
 
-def cmd_sweep(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
-    from ..errors import UsageError
-    from ..render.cli import _size
+def run(args: argparse.Namespace) -> int:
     from ..render.shaders import ShaderLibrary
     from ..scene import apply_overrides, parse_scene, read_scene_json
-    from .outdir import SweepDir
-    from .plan import plan_runs
-    from .runner import run_sweep
+    from ..sweep.outdir import SweepDir
+    from ..sweep.plan import plan_runs
+    from ..sweep.runner import run_sweep
 
-    if args.seconds < 0:
-        raise UsageError(f"--seconds: expected a number >= 0, got {args.seconds:g}")
+    check_seconds(args.seconds)
     if args.workers < 1:
         raise UsageError(f"--workers: expected at least 1, got {args.workers}")
     if args.shader not in ShaderLibrary().names():
         raise UsageError(f"--shader: unknown shader {args.shader!r}; available: {', '.join(ShaderLibrary().names())}")
-    data = read_scene_json(args.scene)
-    specs = plan_runs(data, args.scene, args.vary, args.seconds, args.shader, _size(args.size),
+    scene = scene_path(args.scene)
+    data = read_scene_json(scene)
+    specs = plan_runs(data, scene, args.vary, args.seconds, args.shader, parse_size(args.size),
                       tuple(args.overrides))
     # validate every combination up front: a typo in a key fails now, not in a worker
     for spec in specs:
-        parse_scene(apply_overrides(data, spec.overrides, args.scene), args.scene)
+        parse_scene(apply_overrides(data, spec.overrides, scene), scene)
     out = SweepDir(args.output, args.force)
     todo, done = out.plan(specs)
-    bar = tqdm(total=len(specs), initial=len(done), unit="run",
-               disable=args.no_progress or not sys.stderr.isatty())
+    bar = progress_bar(len(specs), "run", not args.no_progress, initial=len(done))
     failed = []
 
     def on_result(result) -> None:
@@ -66,13 +61,13 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             bar.write(f"run {result.spec.name} failed: {result.error}")
         bar.update(1)
 
+    workers = min(args.workers, max(1, len(todo)))
     try:
-        run_sweep(todo, workers=min(args.workers, max(1, len(todo))), scheduler=args.scheduler,
-                  on_result=on_result)
+        run_sweep(todo, workers=workers, scheduler=args.scheduler, on_result=on_result)
     finally:
         bar.close()
-    out.write_summary(specs, args.scene)
-    where = args.scheduler or f"{min(args.workers, max(1, len(todo)))} local worker(s)"
+    out.write_summary(specs, scene)
+    where = args.scheduler or f"{workers} local worker(s)"
     print(f"{len(specs)} runs ({len(todo)} run now on {where}, {len(done)} already done, {len(failed)} failed); "
           f"wrote {args.output}/runs.csv and {args.output}/sheet.png")
     return 0
