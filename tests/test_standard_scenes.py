@@ -1,0 +1,106 @@
+"""The standard scenes ship inside the package and every command finds them by name."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from clothsim import SceneError, load_scene
+from clothsim.cli import main
+from clothsim.standard_scenes import find_scene, names, scene_path, scenes_dir
+
+from .conftest import ROOT, SCENES, small_scene
+
+STANDARD = ["pinned2", "pinned4", "plane", "selfCollision", "sphere"]
+
+
+def test_five_scenes_inside_the_package():
+    """the five standard scenes are files of the installed package, and each one loads"""
+    import clothsim
+
+    assert names() == STANDARD
+    assert scenes_dir().resolve() == (Path(clothsim.__file__).resolve().parent / "scenes")
+    for name in STANDARD:
+        scene = load_scene(scene_path(name))
+        assert scene.cloth.num_width_points == 50 and scene.cloth.num_height_points == 50
+
+
+def test_package_data_matches_the_scenes():
+    """pyproject's package data names the scene files, so a wheel carries them"""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    globs = config["tool"]["setuptools"]["package-data"]["clothsim"]
+    package = ROOT / "src" / "clothsim"
+    shipped = {p.name for g in globs for p in package.glob(g) if p.parent.name == "scenes"}
+    assert shipped == {f"{n}.json" for n in STANDARD}
+
+
+def test_root_scenes_folder_is_the_packaged_one():
+    """scenes/ at the repository root is the package's folder (a link), so old paths still work"""
+    assert SCENES.is_symlink() and SCENES.resolve() == (ROOT / "src" / "clothsim" / "scenes").resolve()
+    assert (SCENES / "sphere.json").read_bytes() == scene_path("sphere").read_bytes()
+
+
+def test_bare_name_finds_a_standard_scene(tmp_path, monkeypatch):
+    """'sphere', 'sphere.json' and 'SPHERE' mean the packaged sphere scene when no such file is here"""
+    monkeypatch.chdir(tmp_path)
+    for text in ("sphere", "sphere.json", "SPHERE"):
+        assert find_scene(text) == scenes_dir() / "sphere.json"
+
+
+def test_real_file_wins_over_a_name(tmp_path, monkeypatch):
+    """a file of that exact name in the working folder is the one that loads"""
+    monkeypatch.chdir(tmp_path)
+    for name in ("sphere.json", "sphere"):
+        (tmp_path / name).write_text(json.dumps(small_scene()))
+        assert find_scene(name) == Path(name)
+        assert load_scene(find_scene(name)).cloth.num_width_points == 16
+
+
+def test_missing_path_with_a_folder_is_not_looked_up(tmp_path):
+    """a path with a folder in it is never taken for a name: reading it says 'no such file'"""
+    missing = tmp_path / "sphere.json"
+    assert find_scene(missing) == missing
+    assert find_scene("sub/sphere") == Path("sub/sphere")
+
+
+def test_unknown_name_names_the_known_scenes(tmp_path, monkeypatch):
+    """an unknown bare name is a SceneError that lists the standard scenes"""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SceneError) as err:
+        find_scene("spher")
+    assert all(n in str(err.value) for n in STANDARD) and "spher" in str(err.value)
+
+
+def test_simulate_and_render_by_name(tmp_path, monkeypatch, capsys):
+    """`clothsim simulate pinned2` and `clothsim render sphere -o out.png` run the packaged scenes"""
+    monkeypatch.chdir(tmp_path)
+    grid = ["--set", "cloth.num_width_points=8", "--set", "cloth.num_height_points=8"]
+    assert main(["simulate", "pinned2", "--seconds", "0.1", *grid, "--set", "cloth.pinned=[[0,0],[7,0]]"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("pinned2.json: 9 frames") and "64 points" in out
+    assert main(["render", "sphere", "-o", "out.png", "--seconds", "0", "--size", "32x32", *grid]) == 0
+    assert "sphere.json" in capsys.readouterr().out and (tmp_path / "out.png").stat().st_size > 0
+
+
+def test_unknown_name_is_one_line_exit_2(tmp_path, monkeypatch, capsys):
+    """`clothsim render spher -o x.png` fails on one line naming the standard scenes, exit 2, no file"""
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", "spher", "-o", "x.png"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("clothsim: error: spher: ")
+    assert all(n in err for n in STANDARD) and not (tmp_path / "x.png").exists()
+
+
+def test_scenes_command_lists_each_with_a_description(capsys):
+    """`clothsim scenes` prints one line per standard scene saying what it holds"""
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [line.split()[0] for line in lines] == STANDARD
+    described = dict(line.split(None, 1) for line in lines)
+    assert described["pinned2"] == "50×50 horizontal cloth, 1×1 m, pinned at 2 corners"
+    assert described["pinned4"].endswith("pinned at 4 corners")
+    assert described["sphere"].endswith("falls onto a sphere")
+    assert described["selfCollision"].startswith("50×50 vertical cloth") and "plane" in described["selfCollision"]
