@@ -1,7 +1,11 @@
-"""The cloth model: everything about the cloth that does not change while it runs.
+"""The model: everything about the cloths that does not change while they run.
 
-Built once from a :class:`~clothsim.scene.ClothSpec`; a reset restores the
-state from it and changing ks or the spring toggles never rebuilds it.
+Built once, by a builder (:func:`build_model` makes a grid cloth from a
+:class:`~clothsim.scene.ClothSpec`); a reset restores the state from it and
+changing ks or the spring toggles never rebuilds it. The model holds any
+number of cloths, each a range of the points, and springs as plain lists of
+ends, so that a cloth need not be a grid; the solver takes the grid's
+strides as a fast path where a cloth has them (:attr:`Cloth.grid`).
 Arrays are structure-of-arrays so that the solver kernels take them directly.
 """
 
@@ -18,9 +22,32 @@ SPRING_KINDS = ("structural", "shearing", "bending")
 
 
 @dataclass(frozen=True)
-class ClothModel:
-    num_width_points: int
-    num_height_points: int
+class Cloth:
+    """One cloth of a model: its points are ``start:stop`` of the model's."""
+
+    start: int
+    stop: int
+    thickness: float
+    """[m]: its points keep twice this apart in self-collision"""
+    area: float
+    """[m²]: its points share it evenly as CS184 does (mass = area x density / points)"""
+    grid: tuple[int, int] | None
+    """(rows, columns) when its points are a row-major grid whose springs are
+    the grid's own (the solver's stencil fast path), else None"""
+    width: float
+    """extent of the rest layout along its first axis [m]"""
+    height: float
+    """extent of the rest layout along its second axis [m]"""
+
+    @property
+    def num_points(self) -> int:
+        return self.stop - self.start
+
+
+@dataclass(frozen=True)
+class Model:
+    cloths: tuple[Cloth, ...]
+    """the cloths, in scene order, their points one after another"""
     rest_positions: np.ndarray
     """start positions of the point masses [m], float64 (N, 3), row-major (j is the row)"""
     pinned: np.ndarray
@@ -39,9 +66,6 @@ class ClothModel:
     """vertex indices, two triangles per grid cell, int32 (T, 3), counter-clockwise seen from +y / -z"""
     uvs: np.ndarray
     """texture coordinates in [0, 1]², float32 (N, 2)"""
-    width: float
-    height: float
-    thickness: float
 
     @property
     def num_points(self) -> int:
@@ -51,9 +75,51 @@ class ClothModel:
     def num_springs(self) -> int:
         return self.spring_a.shape[0]
 
+    @property
+    def cloth(self) -> Cloth:
+        """the only cloth; a model of several has no single one"""
+        if len(self.cloths) != 1:
+            raise ValueError(f"the model has {len(self.cloths)} cloths, not one")
+        return self.cloths[0]
+
+    @property
+    def thickness(self) -> float:
+        """the cloth's thickness [m]"""
+        return self.cloth.thickness
+
+    @property
+    def width(self) -> float:
+        return self.cloth.width
+
+    @property
+    def height(self) -> float:
+        return self.cloth.height
+
+    @property
+    def size(self) -> float:
+        """the largest side of the box around the rest layout [m]"""
+        return float(np.ptp(self.rest_positions, axis=0).max()) if self.num_points else 0.0
+
+    @property
+    def num_width_points(self) -> int:
+        """grid columns of the only cloth"""
+        return self._grid()[1]
+
+    @property
+    def num_height_points(self) -> int:
+        """grid rows of the only cloth"""
+        return self._grid()[0]
+
     def index(self, i: int, j: int) -> int:
         """Row-major index of grid point (i along width, j along height)."""
-        return j * self.num_width_points + i
+        return self.cloth.start + j * self.num_width_points + i
+
+    def _grid(self) -> tuple[int, int]:
+        if self.cloth.grid is None:
+            raise ValueError("the cloth is not a grid")
+        return self.cloth.grid
+
+
 
 
 def grid_positions(spec: ClothSpec, seed: int = 0) -> np.ndarray:
@@ -103,7 +169,8 @@ def grid_triangles(nw: int, nh: int) -> np.ndarray:
     return np.concatenate([t1, t2]).astype(np.int32)
 
 
-def build_model(spec: ClothSpec, seed: int = 0) -> ClothModel:
+def build_model(spec: ClothSpec, seed: int = 0) -> Model:
+    """The model of one grid cloth, as CS184 lays it out."""
     nw, nh = spec.num_width_points, spec.num_height_points
     pos = grid_positions(spec, seed)
     pinned = np.zeros(nw * nh, dtype=bool)
@@ -120,5 +187,5 @@ def build_model(spec: ClothSpec, seed: int = 0) -> ClothModel:
     tris = grid_triangles(nw, nh)
     for arr in (kind_start, tris):
         arr.setflags(write=False)
-    return ClothModel(nw, nh, pos, pinned, a, b, rest, kind, kind_start, tris, uvs,
-                      spec.width, spec.height, spec.thickness)
+    cloth = Cloth(0, nw * nh, spec.thickness, spec.width * spec.height, (nh, nw), spec.width, spec.height)
+    return Model((cloth,), pos, pinned, a, b, rest, kind, kind_start, tris, uvs)

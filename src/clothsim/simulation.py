@@ -1,4 +1,4 @@
-"""Simulation: the model, the state and the live parameters, stepped frame by frame."""
+"""Simulation: the model, the state, the control and the live parameters, stepped frame by frame."""
 
 from __future__ import annotations
 
@@ -8,94 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
-from . import solver
 from .errors import SimulationError
 from .export import write_obj
 from .mesh import compute_normals
-from .model import ClothModel, build_model
+from .model import Model, build_model
+from .params import Params
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
-from .solver.grid import BLOCK, SET_KIND, build_stencil, force_buffer
-from .solver.self_collide import NeighbourList, near_stencil, skin_factor
+from .solver import ClothSolver, Control
+from .solver.cloth_solver import RUNAWAY_FACTOR
+from .state import State
 
-RUNAWAY_FACTOR = 100.0
-"""a point farther than this many cloth sizes from the start means the run blew up"""
-
-
-@dataclass
-class Params:
-    """What a user may change between frames without rebuilding the model."""
-
-    ks: float
-    """spring constant [N/m]; bending springs use 0.2*ks"""
-    density: float
-    """g/cm² as in CS184"""
-    damping: float
-    """percent of velocity removed per substep, 0..100"""
-    enable_structural: bool
-    enable_shearing: bool
-    enable_bending: bool
-    gravity: tuple[float, float, float]
-    """[m/s²]"""
-    frames_per_sec: float
-    simulation_steps: int
-    """substeps per frame"""
-    self_collision: bool
-
-    @classmethod
-    def from_scene(cls, scene: Scene) -> Params:
-        c, s = scene.cloth, scene.simulation
-        return cls(ks=c.ks, density=c.density, damping=c.damping,
-                   enable_structural=c.enable_structural, enable_shearing=c.enable_shearing,
-                   enable_bending=c.enable_bending, gravity=tuple(s.gravity),
-                   frames_per_sec=s.frames_per_sec, simulation_steps=s.simulation_steps,
-                   self_collision=s.self_collision)
-
-    @property
-    def dt(self) -> float:
-        """length of one substep [s]"""
-        return 1.0 / (self.frames_per_sec * self.simulation_steps)
-
-    @property
-    def enabled(self) -> np.ndarray:
-        """which spring kinds act, indexed by STRUCTURAL, SHEARING, BENDING"""
-        return np.array([self.enable_structural, self.enable_shearing, self.enable_bending])
-
-    def describe(self) -> str:
-        return (f"ks={self.ks:g} N/m, density={self.density:g}, damping={self.damping:g}%, "
-                f"{self.frames_per_sec:g} frames/s x {self.simulation_steps} substeps")
-
-
-@dataclass
-class State:
-    """What a substep changes."""
-
-    positions: np.ndarray
-    """point mass positions [m], float64 (N, 3)"""
-    last_positions: np.ndarray
-    """positions one substep ago [m], float64 (N, 3)"""
-    frame: int = 0
-    time: float = 0.0
-    """simulated time [s]"""
-
-    @classmethod
-    def at_rest(cls, model: ClothModel) -> State:
-        return cls(model.rest_positions.copy(), model.rest_positions.copy())
-
-
-class _Scratch:
-    """Buffers the kernels reuse every substep, allocated once per model."""
-
-    def __init__(self, model: ClothModel, parts: int) -> None:
-        n = model.num_points
-        self.parts = parts
-        self.stencil = build_stencil(model)
-        self.free = (~model.pinned).astype(np.float64)
-        self.planes = np.zeros((2, 3, n))  # positions, last positions
-        self.forces = force_buffer(self.stencil, n)
-        self.masks = np.zeros((parts, 2, n // BLOCK + 2), dtype=np.uint64)  # Provot scratch
-        grid = (model.rest_positions, model.num_height_points, model.num_width_points, model.thickness)
-        skin = skin_factor(*grid)
-        self.lists = NeighbourList(n, model.num_width_points, near_stencil(*grid, skin), parts, skin)
+__all__ = ["Params", "Simulation", "State"]
 
 
 @dataclass
@@ -114,7 +37,7 @@ class Simulation:
 
     scene: Scene
     threads: int | None = None
-    model: ClothModel = field(init=False)
+    model: Model = field(init=False)
     params: Params = field(init=False)
     state: State = field(init=False)
     spheres: list[SphereSpec] = field(init=False)
@@ -126,11 +49,7 @@ class Simulation:
         self.spheres = copy.deepcopy(self.scene.spheres)
         self.planes = copy.deepcopy(self.scene.planes)
         self.state = State.at_rest(self.model)
-        self._scratch = _Scratch(self.model, solver.parts_for(self.model.num_points, self.threads))
-        self._center = self.model.rest_positions.mean(axis=0)
-        size = max(self.model.width, self.model.height)
-        self._runaway2 = (RUNAWAY_FACTOR * size) ** 2
-        self._span = 2.0 * RUNAWAY_FACTOR * size  # spread beyond which self-collision stops
+        self.solver = ClothSolver(self.model, self.threads)
         self._normals: np.ndarray | None = None
         self._handle = -1
         self._handle_pos = np.zeros(3)
@@ -165,8 +84,8 @@ class Simulation:
     @property
     def point_mass(self) -> float:
         """mass of one point [density units x m²], as CS184 computes it"""
-        m = self.model
-        return m.width * m.height * self.params.density / m.num_points
+        cloth = self.model.cloth
+        return cloth.area * self.params.density / cloth.num_points
 
     def reset(self) -> None:
         """Put the cloth back at its start; the parameters keep their current values."""
@@ -189,7 +108,7 @@ class Simulation:
     @property
     def neighbour_list_rebuilds(self) -> int:
         """how often self-collision rebuilt its neighbour list since the start"""
-        return self._scratch.lists.rebuilds
+        return self.solver.rebuilds
 
     @property
     def grabbed(self) -> int:
@@ -202,23 +121,12 @@ class Simulation:
         """Advance one frame (or ``substeps`` substeps); raise SimulationError on blow-up."""
         p = self.params
         n = p.simulation_steps if substeps is None else substeps
-        k = p.ks / self.point_mass
-        k_over_m = (np.array([k, k, 0.2 * k]) * p.enabled)[SET_KIND]
-        m, s = self.model, self._scratch
-        st = s.stencil
-        advance = solver.advance if s.parts == 1 else solver.advance_parallel
-        far2, s.lists.pairs = advance(
-            self.state.positions, self.state.last_positions, m.rest_positions, s.free,
-            np.asarray(p.gravity, dtype=np.float64), k_over_m, p.enabled[SET_KIND],
-            1.0 - p.damping / 100.0, p.dt, n, p.simulation_steps,
-            st.start, st.end, st.count, st.valid, st.rest, st.limit, st.batch, st.share,
-            solver.pack_spheres(self.spheres), solver.pack_planes(self.planes),
-            bool(p.self_collision), m.thickness, self._span, s.planes[0], s.planes[1], s.forces,
-            s.masks, s.lists.buffers(), self._handle, self._handle_pos, self._center)
+        control = Control.of(self._handle, self._handle_pos, self.spheres, self.planes)
+        far2 = self.solver.step(self.state, control, p, n)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None
-        if not far2 <= self._runaway2:
+        if not far2 <= self.solver.runaway2:
             what = "is no longer finite" if not np.isfinite(far2) else (
                 f"has a point {np.sqrt(far2):.3g} m from the start, more than "
                 f"{RUNAWAY_FACTOR:g}x the cloth size")

@@ -1,13 +1,17 @@
-"""Array kernels of one substep: integrate, collide, self-collide, constrain.
+"""The solver: a model's substeps as compiled kernels, one stage per module.
 
-Every kernel takes NumPy arrays and plain numbers and is compiled with Numba;
-:func:`clothsim.solver.step.advance` runs a whole frame of substeps in one call
-so that Python is entered once per frame, not once per substep.
+:class:`ClothSolver` steps a model's state under its control and params;
+:mod:`.step` runs a whole frame of substeps in one compiled call so that
+Python is entered once per frame, not once per substep. The stages:
+:mod:`.springs` (forces and Verlet), :mod:`.selfcollide`, :mod:`.colliders`,
+:mod:`.provot`; the groups they take are in :mod:`.groups`.
 """
 
 from .. import kernel_cache
 kernel_cache.configure()  # before any kernel is decorated: see kernel_cache
 
-from .step import advance, advance_parallel, pack_planes, pack_spheres, parts_for
+from .cloth_solver import ClothSolver  # noqa: E402
+from .groups import Control, Knobs, Points, Scratch  # noqa: E402
+from .step import parts_for  # noqa: E402
 
-__all__ = ["advance", "advance_parallel", "pack_planes", "pack_spheres", "parts_for"]
+__all__ = ["ClothSolver", "Control", "Knobs", "Points", "Scratch", "parts_for"]

@@ -1,18 +1,17 @@
-"""One frame of substeps in a single compiled call."""
+"""One frame of substeps in a single compiled call, and its order of stages."""
 
 from __future__ import annotations
 
 import types
-from collections.abc import Sequence
 
 import numba
 import numpy as np
 from numba import njit, prange
 
-from .collide import collide_planes, collide_spheres
-from .grid import CHUNK, has_springs, integrate, integrate_range, provot, verlet_gather
-from .self_collide import self_collide
-
+from .colliders import collide
+from .provot import provot
+from .springs import CHUNK, gather_ahead, integrate
+from .selfcollide import self_collide
 
 PARALLEL_MIN_POINTS = 5000
 """cloths with fewer points run on one thread unless asked: each parallel
@@ -27,22 +26,6 @@ def parts_for(num_points: int, threads: int | None = None) -> int:
     if threads < 1:
         raise ValueError(f"threads must be at least 1, not {threads}")
     return int(threads)
-
-
-def pack_spheres(spheres: Sequence) -> np.ndarray:
-    """Rows (cx, cy, cz, r, friction) from objects with origin, radius, friction."""
-    out = np.zeros((len(spheres), 5))
-    for k, s in enumerate(spheres):
-        out[k] = (*s.origin, s.radius, s.friction)
-    return out
-
-
-def pack_planes(planes: Sequence) -> np.ndarray:
-    """Rows (px, py, pz, nx, ny, nz, friction) from objects with point, normal, friction."""
-    out = np.zeros((len(planes), 7))
-    for k, p in enumerate(planes):
-        out[k] = (*p.point, *p.normal, p.friction)
-    return out
 
 
 @njit(cache=True, boundscheck=False)
@@ -76,83 +59,71 @@ def _from_planes(P, pos):
             pos[p, c] = P[c, p]
 
 
-def _advance(pos, last, rest, free, gravity, k_over_m, enabled, keep, dt, substeps, simulation_steps,
-             start, end, count, valid, rest_length, limit, batch, share, spheres, planes,
-             self_collision, thickness, span, P, L, F, masks, lists, handle, handle_pos, center):
-    """Run ``substeps`` substeps on ``pos``/``last`` (N, 3) in place.
+def _advance(positions, last_positions, points, springs, knobs, control, lists, pairs, scratch, substeps):
+    """Run ``substeps`` substeps on ``positions``/``last_positions`` (N, 3) [m] in place.
 
-    Returns (largest squared distance of a point from ``center`` afterwards,
-    inf when the state is no longer finite; the neighbour-list pairs array,
-    a new one after each build). ``lists`` is the tuple of self-collision buffers,
-    ``NeighbourList.buffers()``; ``span`` [m] is the spread of the points
-    beyond which the run has blown up and self-collision stops looking.
+    The groups: ``points`` (:class:`~.groups.Points`), ``springs``
+    (:class:`~.springs.GridSprings`), ``knobs`` (:class:`~.groups.Knobs`),
+    ``control`` (:class:`~.groups.Control`), ``lists`` the
+    :class:`~.selfcollide.NeighbourList` or None without self-collision (then
+    none of its code is compiled), ``pairs`` its list of pairs now, and
+    ``scratch`` (:class:`~.groups.Scratch`).
 
-    Order per substep, as in the CS184 course code: forces, Verlet,
-    self-collision, sphere and plane collisions, then the Provot pass.
-    ``handle`` (or -1) is a point held at ``handle_pos`` by the user's grab:
-    it moves kinematically. The kernels work on (3, N) coordinate planes
-    ``P`` (positions) and ``L`` (last positions); ``F`` is the scratch of
-    :func:`integrate`, ``masks[t]`` that of :func:`provot` in part t.
+    Returns (largest squared distance of a point from ``points.center``
+    afterwards, inf when the state is no longer finite; the pairs array of
+    the neighbour list, a new one after each build).
 
-    The substep is cut into as many parts as the neighbour list has
-    (``NeighbourList(parts=...)``): ranges of points, each moved, collided and
-    constrained by one part; the Provot pass then takes the springs across
-    the cuts. This body is compiled twice: as :func:`advance`, which runs the
-    parts one after another, and as :func:`advance_parallel`, where each
-    ``prange`` hands them to threads.
+    Order per substep, as in the CS184 course code: forces and Verlet,
+    self-collision, the colliders, then the Provot pass. ``control.handle``
+    (or -1) is a point held at ``control.handle_pos`` by the user's grab: it
+    moves kinematically.
+
+    The substep is cut into as many parts as ``scratch.masks`` has: ranges
+    of points, each moved, collided and constrained by one part; the Provot
+    pass then takes the springs across the cuts. This body is compiled twice:
+    as :func:`advance`, which runs the parts one after another, and as
+    :func:`advance_parallel`, where each ``prange`` hands them to threads.
     """
-    (cell_start, search, order, slot, sorted_pos, reference, frame, centres, pairs, push, contacts,
-     meta, near_offset, near_weight, near_table, near_metric, near_masks, near_level, pos32, extent32,
-     touched, tally) = lists
-    parts = push.shape[0]
-    _to_planes(pos, P)
-    _to_planes(last, L)
-    dt2 = dt * dt
+    P, L, F, masks = scratch.P, scratch.L, scratch.F, scratch.masks
+    free, center = points.free, points.center
+    handle, handle_pos = control.handle, control.handle_pos
+    enabled, simulation_steps = knobs.enabled, knobs.simulation_steps
+    ahead = springs.ahead
+    parts = masks.shape[0]
+    _to_planes(positions, P)
+    _to_planes(last_positions, L)
     n = P.shape[1]
-    # a part's last springs reach into the next part's first points: those are
-    # moved only once every part has its forces
-    held = (end.max() + CHUNK - 1) // CHUNK * CHUNK
-    springs = has_springs(k_over_m)
     for _ in range(substeps):
         if parts == 1:
-            integrate(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid, rest_length, F)
+            integrate(P, L, free, knobs, springs, F, 0, n, 0)
         else:
+            # a part's last springs reach into the next part's first points: those
+            # are moved only once every part has its forces
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
-                integrate_range(P, L, gravity, k_over_m, free, keep, dt2, start, end, count, valid,
-                                rest_length, F, lo, hi, lo if t == 0 else min(lo + held, hi))
+                integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + ahead, hi))
             for t in range(1, parts):
                 lo, hi = _chunk_range(n, parts, t)
-                for q in range(lo, min(lo + held, hi), CHUNK):
-                    verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, q, min(q + CHUNK, hi), springs)
+                gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
         if handle >= 0:
             _hold(P, handle, handle_pos)
-        if self_collision:
-            pairs, _ = self_collide(P, rest, free, thickness, simulation_steps, span, cell_start,
-                                    search, order, slot, sorted_pos, reference, frame, centres,
-                                    pairs, push, contacts, meta, near_offset, near_weight, near_table,
-                                    near_metric, near_masks, near_level, pos32, extent32,
-                                    touched, tally)
+        if lists is not None:
+            pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
         if parts == 1:
-            collide_spheres(P, L, free, spheres, 0, n)
-            collide_planes(P, L, free, planes, 0, n)
-            provot(P, enabled, start, end, count, limit, batch, share, masks[0], 0, n,
-                   False)
+            collide(P, L, free, control, 0, n)
+            provot(P, springs, enabled, masks[0], 0, n, False)
         else:
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
-                collide_spheres(P, L, free, spheres, lo, hi)
-                collide_planes(P, L, free, planes, lo, hi)
-                provot(P, enabled, start, end, count, limit, batch, share, masks[t],
-                       lo, hi, False)
+                collide(P, L, free, control, lo, hi)
+                provot(P, springs, enabled, masks[t], lo, hi, False)
             for t in range(1, parts):
                 lo, _ = _chunk_range(n, parts, t)
-                provot(P, enabled, start, end, count, limit, batch, share, masks[0],
-                       lo, lo, True)
+                provot(P, springs, enabled, masks[0], lo, lo, True)
         if handle >= 0:
             _hold(P, handle, handle_pos)
-    _from_planes(P, pos)
-    _from_planes(L, last)
+    _from_planes(P, positions)
+    _from_planes(L, last_positions)
     return _farthest(P, center), pairs
 
 

@@ -1,0 +1,80 @@
+"""ClothSolver: the compiled substep of a model, its scratch, and what it takes each frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model import Model
+from ..params import Params
+from ..state import State
+from .groups import Control, Knobs, Points, Scratch
+from .selfcollide import NeighbourList, near_stencil, skin_factor
+from .shared import BLOCK
+from .springs import SET_KIND, build_stencil, force_buffer
+from .step import advance, advance_parallel, parts_for
+
+RUNAWAY_FACTOR = 100.0
+"""a point farther than this many cloth sizes from the start means the run blew up"""
+
+
+class ClothSolver:
+    """Steps a :class:`~clothsim.model.Model` in place: ``step(state, control, params, substeps)``.
+
+    Owns everything made once per model for the kernels (the springs as grid
+    stencils, the neighbour list, the scratch) and chooses the compiled
+    variant: serial, or cut into ``parts`` that threads share (``threads``:
+    see :func:`~.step.parts_for`). The result depends on the part count (the
+    order of the Provot corrections and of the self-collision sums), not on
+    the machine.
+
+    Today the solver takes a model of one grid cloth: the grid's strides are
+    what its spring, Provot and near-stencil kernels walk.
+    """
+
+    def __init__(self, model: Model, threads: int | None = None) -> None:
+        if len(model.cloths) != 1 or model.cloths[0].grid is None:
+            raise ValueError("the solver takes a model of one grid cloth")
+        cloth = model.cloths[0]
+        rows, cols = cloth.grid
+        n = model.num_points
+        self.model = model
+        self.parts = parts_for(n, threads)
+        self.springs = build_stencil(model.rest_positions, model.pinned, rows, cols)
+        size = max(cloth.width, cloth.height)
+        self.points = Points(rest=model.rest_positions, free=(~model.pinned).astype(np.float64),
+                             thickness=float(cloth.thickness), center=model.rest_positions.mean(axis=0),
+                             span=2.0 * RUNAWAY_FACTOR * size)
+        self.runaway2 = (RUNAWAY_FACTOR * size) ** 2
+        """squared distance from the start past which a point means the run blew up [m²]"""
+        self.scratch = Scratch(P=np.zeros((3, n)), L=np.zeros((3, n)), F=force_buffer(self.springs, n),
+                               masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64))
+        skin = skin_factor(model.rest_positions, rows, cols, cloth.thickness)
+        near = near_stencil(model.rest_positions, rows, cols, cloth.thickness, skin)
+        self.lists = NeighbourList.allocate(n, cols, near, self.parts, skin)
+        self._advance = advance if self.parts == 1 else advance_parallel
+
+    def knobs(self, params: Params) -> Knobs:
+        """The kernels' view of the live parameters."""
+        cloth = self.model.cloths[0]
+        k = params.ks / (cloth.area * params.density / cloth.num_points)
+        enabled = params.enabled
+        return Knobs(gravity=np.asarray(params.gravity, dtype=np.float64),
+                     k_over_m=(np.array([k, k, 0.2 * k]) * enabled)[SET_KIND],
+                     enabled=enabled[SET_KIND], keep=1.0 - params.damping / 100.0, dt2=params.dt * params.dt,
+                     simulation_steps=int(params.simulation_steps))
+
+    def step(self, state: State, control: Control, params: Params, substeps: int) -> float:
+        """Advance ``state`` by ``substeps`` substeps of ``params.dt`` in place; returns the
+        largest squared distance of a point from the start [m²] (inf when not finite)."""
+        lists = self.lists if params.self_collision else None
+        far2, pairs = self._advance(state.positions, state.last_positions, self.points, self.springs,
+                                    self.knobs(params), control, lists,
+                                    None if lists is None else lists.pairs, self.scratch, substeps)
+        if lists is not None:
+            self.lists = lists._replace(pairs=pairs)
+        return far2
+
+    @property
+    def rebuilds(self) -> int:
+        """how often self-collision built its neighbour list"""
+        return self.lists.rebuilds

@@ -1,0 +1,169 @@
+"""The self-collision stage of a substep: its passes in order."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from ..shared import EXACT_OPTIONS, KERNEL_OPTIONS, part_range
+from .buffers import BUCKET, PAIRS, REBUILDS, SKIN, SLACK_BUCKETS, SPARSE_PAIRS, VALID
+from .drift import drift_bound, single_copy, widened2
+from .hashgrid import sort_into_cells
+from .listbuild import COMPRESS, query_points
+from .nearstencil import NEAR_LEVELS, near_pushes
+from .pushes import apply_pushes, apply_sparse, pair_pushes
+from .slack import checked_pairs, label_pairs, sort_by_slack
+
+DENSE_LIST = 0.4
+"""pairs per point of the last list above which the list build, where it has no
+compress (see COMPRESS), no longer tests a chunk's bits for none before
+writing them: see :func:`query_points`"""
+
+DENSE_COMPRESSED = 1.0
+"""DENSE_LIST where the build appends with the compress: a piled-up 50x50 cloth
+(1.4 pairs a point) built its list 13% faster without the test, a hanging
+100x100 one (0.26) a fifth slower"""
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def self_collide(P, points, simulation_steps, lists, pairs):
+    """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
+
+    Each pair pushes both ends; a point's pushes are averaged over its
+    colliding neighbours and divided by ``simulation_steps``; pinned points
+    (``free`` 0) stay. Returns (pairs array, number of colliding pairs); the
+    array is a new one after each build (see :func:`sort_by_slack`). When
+    the points are spread wider than ``span`` [m] (a run that blew up) no
+    list is built and nothing is pushed.
+
+    The work is cut into as many parts as the buffers have (``push.shape[0]``),
+    each with its own pushes, summed at the end. Inlined into a
+    ``parallel=True`` caller the parts run on threads (``prange``); called
+    from serial code they run one after another. The result depends on the
+    number of parts (the order of the sums), not on the threads.
+
+    ``points`` is the :class:`~clothsim.solver.groups.Points` of the cloth
+    (rest layout, free weights, thickness, span), ``lists`` its
+    :class:`~.buffers.NeighbourList` and ``pairs`` its list of pairs now
+    (``lists.pairs`` until a build replaces it); the positions P are (3, N) planes.
+    """
+    # read by name once, here: a store through a tuple's field inside a prange
+    # body is dropped by numba
+    rest, free, thickness, span = points.rest, points.free, points.thickness, points.span
+    reference, frame, centres = lists.reference, lists.frame, lists.centres
+    push, count, meta, tally = lists.push, lists.count, lists.meta, lists.tally
+    near_offset, near_weight = lists.near_offset, lists.near_weight
+    near_masks, near_level = lists.near_masks, lists.near_level
+    pos32, extent32, touched = lists.pos32, lists.extent32, lists.touched
+    n = P.shape[1]
+    parts = push.shape[0]
+    reach = 2.0 * thickness
+    skin = 0.001 * meta[SKIN] * reach
+    # the positions in single precision, from the last build's origin: the drift
+    # test, the near stencil and the pairs that rarely touch read them (see
+    # drift_bound, near_pushes, pair_pushes)
+    extent = single_copy(P, frame, pos32, extent32)
+    bound = np.inf if meta[VALID] == 0 else drift_bound(pos32, reference, skin, centres,
+                                                         extent + frame[3])
+    fresh = not bound < skin
+    if fresh:
+        radius = reach + skin
+        grid = sort_into_cells(P, radius, span, lists)
+        if grid[3] == 0.0:
+            meta[VALID] = 0
+            return pairs, 0
+        # the points are cut into more shares than parts, dealt out in turn: the
+        # cost of a share depends on how crowded its part of the cloth is
+        shares = tally.shape[0]
+        size = pairs.shape[1] // shares
+        # skip a chunk with no pair before appending only where the last list's
+        # density says chunks are mostly empty
+        sparse = meta[PAIRS] < (DENSE_COMPRESSED if COMPRESS else DENSE_LIST) * n
+        while True:  # once more with room for twice the largest share when one overflowed
+            for t in prange(parts):
+                for j in range(t, shares, parts):
+                    lo, hi = part_range(n, shares, j)
+                    tally[j, 0] = query_points(grid, reach, radius, rest, lists, lo, hi, pairs,
+                                               j * size, size, sparse)
+            most = 0
+            for j in range(shares):
+                most = max(most, tally[j, 0])
+            if most <= size:
+                break
+            size = 2 * most
+            pairs = np.empty((2, shares * size), dtype=np.int32)
+        meta[PAIRS] = _close_up(pairs, tally, size)
+        for c in range(3):
+            frame[c] = P[c, 0]
+        extent = single_copy(P, frame, pos32, extent32)
+        frame[3] = extent
+        _copy(pos32[:, :n], reference)
+        centres[:] = 0.0
+        meta[VALID] = 1
+        meta[REBUILDS] += 1
+    if meta[VALID] == 0:
+        return pairs, 0
+    listed = meta[PAIRS]
+    # a new list is labelled and sorted by slack (a pass of its own, with no
+    # branch: in one with the pushes, as it was, the substep of a build took
+    # 6.6 us longer at 50x50); every substep then checks the pairs whose slack
+    # the drift bound reaches, on the substep of a build the touching ones.
+    # Slack is measured in squared distance past the reach's square (no square
+    # root per pair), in steps of the span up to the list radius's square
+    span2 = (reach + skin) ** 2 - reach * reach
+    reachable = ((reach + bound) ** 2 - reach * reach) * (1.0 + 1e-6) / span2
+    if fresh:
+        labels = np.empty(listed, dtype=np.int8)
+        for t in prange(parts):
+            k0, k1 = part_range(listed, parts, t)
+            label_pairs(P, reach, pairs, k0, k1, labels, (SLACK_BUCKETS - 1) / span2)
+        pairs = sort_by_slack(pairs, labels, listed, meta, parts)
+    # bucket 0, the pairs that touched at the build, is pushed without a branch
+    # per pair: those pairs hover about the reach, and the branch on whether
+    # one touches was mispredicted about as often as not
+    touching = meta[BUCKET]
+    # the pairs that rarely touch and, between builds, the near stencil are first
+    # tested in single precision (see near_pushes)
+    wide2 = widened2(reach, extent)
+    checked = touching if fresh else checked_pairs(meta, reachable * (SLACK_BUCKETS - 1))
+    for t in prange(parts):
+        h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
+                        near_masks[t], t, parts, near_level, fresh, reachable * NEAR_LEVELS,
+                        NEAR_LEVELS / span2, pos32, wide2, not fresh)
+        k0, k1 = part_range(checked, parts, t)
+        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, push[t],
+                                      count[t], touched[t], h, pos32, wide2)
+    hits, most = 0, 0
+    for t in range(parts):
+        hits += tally[t, 1]
+        most = max(most, tally[t, 1])
+    if hits > 0:
+        inv_steps = 1.0 / simulation_steps
+        if most <= SPARSE_PAIRS:
+            apply_sparse(P, push, count, free, inv_steps, touched, tally)
+        else:
+            for t in prange(parts):
+                lo, hi = part_range(n, parts, t)
+                apply_pushes(P, push, count, free, inv_steps, lo, hi)
+    return pairs, hits
+
+
+@njit(**EXACT_OPTIONS)
+def _close_up(pairs, tally, size):
+    """Move each share's pairs (share j's from ``j * size``) into one run; returns their number."""
+    total = tally[0, 0]
+    for t in range(1, tally.shape[0]):
+        base = t * size
+        for j in range(tally[t, 0]):
+            pairs[0, total + j] = pairs[0, base + j]
+            pairs[1, total + j] = pairs[1, base + j]
+        total += tally[t, 0]
+    return total
+
+
+@njit(**KERNEL_OPTIONS)
+def _copy(src, dst):
+    for c in range(src.shape[0]):
+        a, b = src[c], dst[c]
+        for p in range(a.shape[0]):
+            b[p] = a[p]

@@ -1,0 +1,50 @@
+"""What the kernels of every stage share: compile options and small inlined helpers."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numba.cpython.unsafe.numbers import trailing_zeros
+
+KERNEL_OPTIONS = dict(cache=True, fastmath=True, boundscheck=False, error_model="numpy")
+"""error_model="numpy" drops the zero-division check, which would stop LLVM vectorising"""
+
+EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
+"""for the kernels that test for NaN before turning coordinates into cell
+indices: fastmath would let LLVM drop the test, also where one of them is
+inlined into another, and a NaN index could then reach memory"""
+
+BLOCK = 64
+"""springs the Provot pass checks together: one bit each in a 64-bit word"""
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def inv_length(l2):
+    """1/sqrt(l2) to about 1e-13 relative: a single-precision estimate refined by
+    one Newton step in double, which is cheaper than a double sqrt and divide."""
+    y = np.float64(np.float32(1.0) / np.sqrt(np.float32(max(l2, 1e-30))))
+    return y * (1.5 - 0.5 * l2 * y * y)
+
+
+@njit(cache=True, inline="always")
+def gap2(xa, ya, za, i, xb, yb, zb, j):
+    """Squared distance from point i of the planes (xa, ya, za) to point j of
+    (xb, yb, zb): the test of every vectorised check, where the planes are
+    views that start at each end of a set of pairs."""
+    dx = xb[j] - xa[i]
+    dy = yb[j] - ya[i]
+    dz = zb[j] - za[i]
+    return dx * dx + dy * dy + dz * dz
+
+
+@njit(cache=True, inline="always")
+def pop_lowest(mask):
+    """(index of the lowest set bit of the uint64 ``mask``, mask without it): one
+    step of a walk over the bits a vectorised check set."""
+    return np.int64(trailing_zeros(mask)), mask & (mask - np.uint64(1))
+
+
+@njit(cache=True, inline="always")
+def part_range(n, parts, t):
+    """Items ``lo:hi`` of part t when n items are cut into ``parts`` nearly equal ranges."""
+    return t * n // parts, (t + 1) * n // parts
