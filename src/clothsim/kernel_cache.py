@@ -70,6 +70,7 @@ KEEP_SECONDS = 3600.0
 
 _HASH_CHARS = 16
 _NUMBA_IMPORT = re.compile(rb"^(?:import numba\b|from numba[. ])", re.MULTILINE)
+_KEYED = re.compile(f"(?:kernels|clothsim)-[0-9a-f]{{{_HASH_CHARS}}}")
 _VARIANT = re.compile(r"[A-Za-z0-9_.+-]{1,64}")
 
 _configured: dict = {}
@@ -141,7 +142,10 @@ def configure() -> Path | None:
     import numba
 
     if "original" not in _configured:
-        _configured["original"] = numba.config.CACHE_DIR or ""
+        original = numba.config.CACHE_DIR or ""
+        if _KEYED.fullmatch(os.path.basename(os.path.normpath(original))):
+            original = ""  # set by an earlier configure() (this module imported afresh)
+        _configured["original"] = original
     user_dir = os.environ.get("NUMBA_CACHE_DIR") or _configured["original"]
     key = (user_dir, os.environ.get(FORCE_PORTABLE), os.environ.get("XDG_CACHE_HOME"),
            os.environ.get("LOCALAPPDATA"), os.environ.get("HOME"))
@@ -181,7 +185,7 @@ def _ensure(path: Path, parent: Path, prefix: str) -> Path:
 
 def _prune(parent: Path, prefix: str, keep: str) -> None:
     """Remove old keyed folders of other hashes under ``parent`` (see the module's docstring)."""
-    pattern = re.compile(re.escape(prefix) + "[0-9a-f]{%d}" % _HASH_CHARS)
+    pattern = re.compile(re.escape(prefix) + f"[0-9a-f]{{{_HASH_CHARS}}}")
     found = []
     try:
         entries = list(os.scandir(parent))
