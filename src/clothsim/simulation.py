@@ -111,6 +111,17 @@ class Simulation:
         return self.solver.rebuilds
 
     @property
+    def control(self) -> Control:
+        """what the world imposes now: the held point and the colliders as they stand"""
+        return Control.of(self._handle, self._handle_pos, self.spheres, self.planes)
+
+    @property
+    def kernels_compiled(self) -> bool:
+        """False when the next step compiles the kernels first (once per
+        variant and machine; afterwards they load from the cache)"""
+        return self.solver.is_compiled(self.control, self.params)
+
+    @property
     def grabbed(self) -> int:
         """index of the held point, or -1"""
         return self._handle
@@ -121,8 +132,7 @@ class Simulation:
         """Advance one frame (or ``substeps`` substeps); raise SimulationError on blow-up."""
         p = self.params
         n = p.simulation_steps if substeps is None else substeps
-        control = Control.of(self._handle, self._handle_pos, self.spheres, self.planes)
-        far2 = self.solver.step(self.state, control, p, n)
+        far2 = self.solver.step(self.state, self.control, p, n)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None

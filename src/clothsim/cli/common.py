@@ -110,12 +110,26 @@ def scene_path(text: str) -> str:
 
 def load_simulation(args: argparse.Namespace) -> Simulation:
     """The simulation of ``args.scene`` with ``--set``, ``--threads`` and ``--no-self-collision``."""
+    from ..scene import load_scene
     from ..simulation import Simulation
+    from ..solver.cloth_solver import build_compiled
 
-    sim = Simulation.from_file(scene_path(args.scene), args.overrides, threads=getattr(args, "threads", None))
+    scene = load_scene(scene_path(args.scene), args.overrides)
+    told = not build_compiled()
+    if told:
+        say_compiling()
+    sim = Simulation(scene, threads=getattr(args, "threads", None))
     if getattr(args, "no_self_collision", False):
         sim.params.self_collision = False
+    if not told and not sim.kernels_compiled:
+        say_compiling()
     return sim
+
+
+def say_compiling() -> None:
+    """The one line that explains a silent first run: numba compiles the kernels."""
+    print("clothsim: compiling the simulation kernels for this machine, once (10-60 s); "
+          "later runs load them from the cache", file=sys.stderr, flush=True)
 
 
 def make_recorder(args: argparse.Namespace, sim: Simulation):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernel_cache
 from ..model import Model
 from ..params import Params
 from ..state import State
@@ -15,6 +16,17 @@ from .step import advance, advance_parallel, parts_for
 
 RUNAWAY_FACTOR = 100.0
 """a point farther than this many cloth sizes from the start means the run blew up"""
+
+
+BUILD_VARIANT = "build"
+"""the warm marker of the kernels a solver compiles when it is made (the list
+build checks the rest layout: see :func:`~.selfcollide.nearstencil.grid_metric`)"""
+
+
+def build_compiled() -> bool:
+    """Whether making a solver finds its kernels compiled (False: it compiles
+    them first, a few seconds once)."""
+    return kernel_cache.is_warm(BUILD_VARIANT)
 
 
 class ClothSolver:
@@ -51,7 +63,9 @@ class ClothSolver:
         skin = skin_factor(model.rest_positions, rows, cols, cloth.thickness)
         near = near_stencil(model.rest_positions, rows, cols, cloth.thickness, skin)
         self.lists = NeighbourList.allocate(n, cols, near, self.parts, skin)
+        kernel_cache.mark_warm(BUILD_VARIANT)
         self._advance = advance if self.parts == 1 else advance_parallel
+        self._warm: set[str] = set()
 
     def knobs(self, params: Params) -> Knobs:
         """The kernels' view of the live parameters."""
@@ -63,6 +77,23 @@ class ClothSolver:
                      enabled=enabled[SET_KIND], keep=1.0 - params.damping / 100.0, dt2=params.dt * params.dt,
                      simulation_steps=int(params.simulation_steps))
 
+    def variant(self, control: Control, params: Params) -> str:
+        """The name of the compiled specialization a step with these takes: serial
+        or parallel, and the optional stages the scene has (each compiles only
+        where present, see :mod:`.colliders` and :func:`~.step._advance`)."""
+        parts = ["serial" if self.parts == 1 else "parallel"]
+        parts += [name for name in ("spheres", "planes") if getattr(control, name) is not None]
+        if params.self_collision:
+            parts.append("self")
+        return "+".join(parts)
+
+    def is_compiled(self, control: Control, params: Params) -> bool:
+        """Whether a step with these finds its kernels compiled, in this process
+        or in the cache; False means the next step compiles them first (tens of
+        seconds, once)."""
+        variant = self.variant(control, params)
+        return variant in self._warm or kernel_cache.is_warm(variant)
+
     def step(self, state: State, control: Control, params: Params, substeps: int) -> float:
         """Advance ``state`` by ``substeps`` substeps of ``params.dt`` in place; returns the
         largest squared distance of a point from the start [m²] (inf when not finite)."""
@@ -72,6 +103,10 @@ class ClothSolver:
                                     None if lists is None else lists.pairs, self.scratch, substeps)
         if lists is not None:
             self.lists = lists._replace(pairs=pairs)
+        variant = self.variant(control, params)
+        if variant not in self._warm:
+            self._warm.add(variant)
+            kernel_cache.mark_warm(variant)
         return far2
 
     @property
