@@ -104,3 +104,14 @@ def test_scenes_command_lists_each_with_a_description(capsys):
     assert described["pinned4"].endswith("pinned at 4 corners")
     assert described["sphere"].endswith("falls onto a sphere")
     assert described["selfCollision"].startswith("50×50 vertical cloth") and "plane" in described["selfCollision"]
+
+
+def test_sweep_by_name(tmp_path, monkeypatch, capsys):
+    """`clothsim sweep pinned2 --vary ...` sweeps the packaged scene"""
+    monkeypatch.chdir(tmp_path)
+    small = ["--set", "cloth.num_width_points=8", "--set", "cloth.num_height_points=8",
+             "--set", "cloth.pinned=[[0,0],[7,0]]"]
+    assert main(["sweep", "pinned2", "--vary", "cloth.ks=500,5000", *small, "--seconds", "0.1",
+                 "--size", "32x32", "--workers", "1", "--no-progress", "-o", "out"]) == 0
+    assert "2 runs" in capsys.readouterr().out
+    assert len(list((tmp_path / "out").glob("*.png"))) == 3  # two runs and the sheet
