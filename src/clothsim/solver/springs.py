@@ -143,14 +143,15 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     """
     gravity, k_over_m, keep, dt2 = knobs.gravity, knobs.k_over_m, knobs.keep, knobs.dt2
     start, end, count, valid, rest = springs.start, springs.end, springs.count, springs.valid, springs.rest
-    if not has_springs(k_over_m):
-        verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, max(first, moved), stop, False)
+    on = has_springs(k_over_m)  # a variable, not a constant: one compile of verlet_gather
+    if not on:
+        verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, max(first, moved), stop, on)
         return
     for lo in range(first, stop, CHUNK):
         hi = min(lo + CHUNK, stop)
         spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi)
         if lo >= moved:
-            verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi)
+            verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, on)
 
 
 @njit(**KERNEL_OPTIONS)
@@ -206,7 +207,7 @@ def spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, springs=True):
+def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, springs):
     """Points ``lo:hi`` gather their spring forces from ``F`` and take their Verlet
     step; without ``springs`` (see :func:`has_springs`) under gravity alone,
     and ``F``, which then holds the last forces written, is not read (the

@@ -81,8 +81,9 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     The substep is cut into as many parts as ``scratch.masks`` has: ranges
     of points, each moved, collided and constrained by one part; the Provot
     pass then takes the springs across the cuts. This body is compiled twice:
-    as :func:`advance`, which runs the parts one after another, and as
-    :func:`advance_parallel`, where each ``prange`` hands them to threads.
+    as :func:`advance`, which runs the parts one after another (one part:
+    the whole cloth), and as :func:`advance_parallel`, where each ``prange``
+    hands them to threads.
     """
     P, L, F, masks = scratch.P, scratch.L, scratch.F, scratch.masks
     free, center = points.free, points.center
@@ -93,33 +94,30 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     _to_planes(positions, P)
     _to_planes(last_positions, L)
     n = P.shape[1]
+    # every call takes its ranges and switches as variables, never as constants:
+    # numba compiles a kernel once per distinct literal argument, and the
+    # first run of a scene paid for each
+    inside, across = np.bool_(False), np.bool_(True)
     for _ in range(substeps):
-        if parts == 1:
-            integrate(P, L, free, knobs, springs, F, 0, n, 0)
-        else:
-            # a part's last springs reach into the next part's first points: those
-            # are moved only once every part has its forces
-            for t in prange(parts):
-                lo, hi = _chunk_range(n, parts, t)
-                integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + ahead, hi))
-            for t in range(1, parts):
-                lo, hi = _chunk_range(n, parts, t)
-                gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
+        # a part's last springs reach into the next part's first points: those
+        # are moved only once every part has its forces
+        for t in prange(parts):
+            lo, hi = _chunk_range(n, parts, t)
+            integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + ahead, hi))
+        for t in range(1, parts):
+            lo, hi = _chunk_range(n, parts, t)
+            gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if lists is not None:
             pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
-        if parts == 1:
-            collide(P, L, free, control, 0, n)
-            provot(P, springs, enabled, masks[0], 0, n, False)
-        else:
-            for t in prange(parts):
-                lo, hi = _chunk_range(n, parts, t)
-                collide(P, L, free, control, lo, hi)
-                provot(P, springs, enabled, masks[t], lo, hi, False)
-            for t in range(1, parts):
-                lo, _ = _chunk_range(n, parts, t)
-                provot(P, springs, enabled, masks[0], lo, lo, True)
+        for t in prange(parts):
+            lo, hi = _chunk_range(n, parts, t)
+            collide(P, L, free, control, lo, hi)
+            provot(P, springs, enabled, masks[t], lo, hi, inside)
+        for t in range(1, parts):
+            lo, _ = _chunk_range(n, parts, t)
+            provot(P, springs, enabled, masks[0], lo, lo, across)
         if handle >= 0:
             _hold(P, handle, handle_pos)
     _from_planes(P, positions)

@@ -45,7 +45,10 @@ def build_list(P, rest, reach, radius, span, lists, pairs, sparse=True):
     grid = sort_into_cells(P, radius, span, lists)
     if grid[3] == 0.0:
         return -1
-    return query_points(grid, reach, radius, rest, lists, 0, P.shape[1], pairs, 0, pairs.shape[1], sparse)
+    # the same argument types as the substep's call (no constants): one compile serves both
+    zero = np.int64(0)
+    return query_points(grid, reach, radius, rest, lists, zero, np.int64(P.shape[1]), pairs, zero,
+                        np.int64(pairs.shape[1]), np.bool_(sparse))
 
 
 @njit(**EXACT_OPTIONS)
