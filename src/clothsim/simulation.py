@@ -49,10 +49,10 @@ class Simulation:
         self.spheres = copy.deepcopy(self.scene.spheres)
         self.planes = copy.deepcopy(self.scene.planes)
         self.state = State.at_rest(self.model)
-        self.solver = ClothSolver(self.model, self.threads)
         self._normals: np.ndarray | None = None
         self._handle = -1
         self._handle_pos = np.zeros(3)
+        self.solver = ClothSolver(self.model, self.threads, (self.control, self.params))
 
     @classmethod
     def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = (),

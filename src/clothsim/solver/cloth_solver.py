@@ -8,6 +8,7 @@ from .. import kernel_cache
 from ..model import Model
 from ..params import Params
 from ..state import State
+from . import prewarm
 from .groups import Control, Knobs, Points, Scratch
 from .selfcollide import NeighbourList, near_stencil, skin_factor
 from .shared import BLOCK
@@ -43,7 +44,11 @@ class ClothSolver:
     what its spring, Provot and near-stencil kernels walk.
     """
 
-    def __init__(self, model: Model, threads: int | None = None) -> None:
+    def __init__(self, model: Model, threads: int | None = None,
+                 first: tuple[Control, Params] | None = None) -> None:
+        """``first``: the control and params of the first step, where known. If
+        its kernels are not in the cache yet, a second process starts
+        compiling them at once (see :mod:`.prewarm`), while this one builds."""
         if len(model.cloths) != 1 or model.cloths[0].grid is None:
             raise ValueError("the solver takes a model of one grid cloth")
         cloth = model.cloths[0]
@@ -51,6 +56,9 @@ class ClothSolver:
         n = model.num_points
         self.model = model
         self.parts = parts_for(n, threads)
+        self._warm: set[str] = set()
+        if first is not None and not self.is_compiled(*first):
+            prewarm.start(self.variant(*first))
         self.springs = build_stencil(model.rest_positions, model.pinned, rows, cols)
         size = max(cloth.width, cloth.height)
         self.points = Points(rest=model.rest_positions, free=(~model.pinned).astype(np.float64),
@@ -65,7 +73,6 @@ class ClothSolver:
         self.lists = NeighbourList.allocate(n, cols, near, self.parts, skin)
         kernel_cache.mark_warm(BUILD_VARIANT)
         self._advance = advance if self.parts == 1 else advance_parallel
-        self._warm: set[str] = set()
 
     def knobs(self, params: Params) -> Knobs:
         """The kernels' view of the live parameters."""

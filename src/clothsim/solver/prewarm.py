@@ -1,0 +1,146 @@
+"""A second process that compiles the substep's kernels while the first builds the model.
+
+numba compiles in one thread, and a first run of a scene spends most of its
+time compiling. The substep (:func:`~.step.advance`) calls some twenty
+kernels; each is compiled, and saved to the cache, when the first process
+types the call. A second process started with the run compiles the same
+kernels in the reverse order, so that the first finds the later ones in the
+cache when it gets to them: the two cores share the work.
+
+The kernels are called here on a 4x4 cloth with arguments of exactly the
+types the substep passes them (numba keys a compiled kernel on its argument
+types, a readonly array or an int constant included); a mismatch costs only
+time, never a wrong result, since the first process then compiles that
+kernel itself. ``tests/test_prewarm.py`` checks that the first process
+compiles none of them after a prewarm.
+
+Only the serial substep is prewarmed: the threaded one compiles its parts
+inside numba's parallel lowering, which the kernels' own caches do not serve.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import kernel_cache
+
+PREWARM = "CLOTHSIM_PREWARM"
+"""set to 0 to compile in one process only"""
+
+LOCK_SECONDS = 120.0
+"""a prewarm of the same variant started less than this ago is not started again
+(the processes of a sweep start together)"""
+
+
+def start(variant: str) -> subprocess.Popen | None:
+    """Start the second process for ``variant`` (see
+    :meth:`~.cloth_solver.ClothSolver.variant`) where it can help: a serial
+    variant, two or more cores, and not switched off by CLOTHSIM_PREWARM=0.
+    It runs detached from the terminal and ends by itself."""
+    if os.environ.get(PREWARM, "1") == "0" or not variant.startswith("serial"):
+        return None
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    if cores < 2:
+        return None
+    folder = kernel_cache.cache_dir()
+    if folder is None:
+        return None
+    lock = folder / f"prewarm-{variant}.lock"
+    try:
+        if lock.exists() and time.time() - lock.stat().st_mtime < LOCK_SECONDS:
+            return None
+        lock.write_text(str(os.getpid()))
+        # the child imports this very package, whatever sys.path the parent had
+        env = dict(os.environ)
+        top = str(Path(__file__).resolve().parents[2])
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (top, env.get("PYTHONPATH")) if p)
+        return subprocess.Popen([sys.executable, "-m", "clothsim.solver.prewarm", variant, str(lock)],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, start_new_session=True, env=env)
+    except OSError:
+        return None
+
+
+def calls(variant: str) -> list:
+    """(kernel, arguments) in the reverse of the order the substep types them."""
+    from .colliders import collide
+    from .groups import Control, Knobs, Points, Scratch
+    from .provot import provot
+    from .selfcollide import NeighbourList
+    from .selfcollide.collide import _close_up, _copy
+    from .selfcollide.drift import _to_single, drift_bound
+    from .selfcollide.nearstencil import near_pushes
+    from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
+    from .selfcollide.slack import label_pairs
+    from .springs import build_stencil, force_buffer, gather_ahead, integrate
+    from .step import _farthest, _from_planes, _to_planes
+    from ..mesh import vertex_normals
+    from ..scene import PlaneSpec, SphereSpec
+
+    features = set(variant.split("+")[1:])
+    rows = cols = 4
+    n = rows * cols
+    i, j = np.meshgrid(np.arange(cols), np.arange(rows))
+    rest = np.stack([i.ravel() * 0.1, np.ones(n), j.ravel() * 0.1], axis=1)
+    pinned = np.zeros(n, dtype=bool)
+    triangles = np.array([[0, 1, 4]], dtype=np.int32)
+    for a in (rest, pinned, triangles):
+        a.setflags(write=False)  # as the model's arrays are
+    springs = build_stencil(rest, pinned, rows, cols)
+    points = Points(rest=rest, free=np.ones(n), thickness=0.01, center=np.zeros(3), span=1e3)
+    knobs = Knobs(gravity=np.zeros(3), k_over_m=np.ones(6), enabled=np.ones(6, dtype=bool), keep=1.0,
+                  dt2=1e-6, simulation_steps=1)
+    spheres = [SphereSpec((0.0, 0.0, 0.0), 0.1, 0.3)] if "spheres" in features else []
+    planes = [PlaneSpec((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 0.5)] if "planes" in features else []
+    control = Control.of(-1, np.zeros(3), spheres, planes)
+    scratch = Scratch(P=np.ascontiguousarray(rest.T), L=np.ascontiguousarray(rest.T),
+                      F=force_buffer(springs, n), masks=np.zeros((1, 2, 2), dtype=np.uint64))
+    lists = NeighbourList.allocate(n, cols)
+    P, L, F = scratch.P, scratch.L, scratch.F
+    zero, i64 = np.int64(0), np.int64(n)
+    f32 = np.float32(1.0)
+    out = [(_farthest, (P, points.center)),
+           (provot, (P, springs, knobs.enabled, scratch.masks[0], zero, i64, np.bool_(False))),
+           (collide, (P, L, points.free, control, zero, i64))]
+    if "self" in features:
+        push, count, touched = lists.push, lists.count, lists.touched
+        out += [(apply_pushes, (P, push, count, points.free, 1.0, zero, i64)),
+                (apply_sparse, (P, push, count, points.free, 1.0, touched, lists.tally)),
+                (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, push[0], count[0], touched[0], zero,
+                               lists.pos32, f32)),
+                (near_pushes, (P, 0.02, lists.near_offset, lists.near_weight, push[0], count[0], touched[0],
+                               lists.near_masks[0], zero, np.int64(1), lists.near_level, True, 1.0, 1.0,
+                               lists.pos32, f32, False)),
+                (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
+                (_copy, (lists.pos32[:, :n], lists.reference)),
+                (_close_up, (lists.pairs, lists.tally, zero)),
+                (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
+                (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
+    out += [(gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
+            (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero)),
+            (_to_planes, (np.zeros((n, 3)), P)),
+            (_from_planes, (P, np.zeros((n, 3)))),
+            (vertex_normals, (np.zeros((n, 3)), triangles, np.zeros((n, 3))))]
+    return out
+
+
+def main(variant: str, lock: str | None = None) -> None:
+    try:
+        for kernel, args in calls(variant):
+            kernel(*args)
+    finally:
+        if lock is not None:
+            Path(lock).unlink(missing_ok=True)
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:3])
