@@ -35,7 +35,7 @@ substep's own body: the list build, which the model's build runs to check the
 rest layout of a fine cloth"""
 
 
-@pytest.mark.parametrize("scene,variant", [("sphere", "serial+spheres+self"), ("plane", "serial+planes+self")])
+@pytest.mark.parametrize("scene,variant", [("sphere", "serial+spheres"), ("plane", "serial+planes")])
 def test_after_a_prewarm_the_first_run_compiles_only_the_model_build_and_the_substep(tmp_path, scene, variant):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), CLOTHSIM_PREWARM="0")
     subprocess.run([sys.executable, "-m", "clothsim.solver.prewarm", variant], env=env, check=True,
@@ -51,6 +51,6 @@ def test_prewarm_starts_only_where_it_can_help(monkeypatch):
     from clothsim.solver import prewarm
 
     monkeypatch.setenv(prewarm.PREWARM, "0")
-    assert prewarm.start("serial+spheres+self") is None
+    assert prewarm.start("serial+spheres") is None
     monkeypatch.setenv(prewarm.PREWARM, "1")
-    assert prewarm.start("parallel+spheres+self") is None  # the threaded body is not served
+    assert prewarm.start("parallel+spheres") is None  # the threaded body is not served

@@ -82,16 +82,15 @@ class ClothSolver:
         return Knobs(gravity=np.asarray(params.gravity, dtype=np.float64),
                      k_over_m=(np.array([k, k, 0.2 * k]) * enabled)[SET_KIND],
                      enabled=enabled[SET_KIND], keep=1.0 - params.damping / 100.0, dt2=params.dt * params.dt,
-                     simulation_steps=int(params.simulation_steps))
+                     simulation_steps=int(params.simulation_steps),
+                     self_collision=bool(params.self_collision))
 
     def variant(self, control: Control, params: Params) -> str:
         """The name of the compiled specialization a step with these takes: serial
-        or parallel, and the optional stages the scene has (each compiles only
-        where present, see :mod:`.colliders` and :func:`~.step._advance`)."""
+        or parallel, and the collider kinds the scene has (each compiles only
+        where present, see :mod:`.colliders`)."""
         parts = ["serial" if self.parts == 1 else "parallel"]
         parts += [name for name in ("spheres", "planes") if getattr(control, name) is not None]
-        if params.self_collision:
-            parts.append("self")
         return "+".join(parts)
 
     def is_compiled(self, control: Control, params: Params) -> bool:
@@ -104,12 +103,10 @@ class ClothSolver:
     def step(self, state: State, control: Control, params: Params, substeps: int) -> float:
         """Advance ``state`` by ``substeps`` substeps of ``params.dt`` in place; returns the
         largest squared distance of a point from the start [m²] (inf when not finite)."""
-        lists = self.lists if params.self_collision else None
         far2, pairs = self._advance(state.positions, state.last_positions, self.points, self.springs,
-                                    self.knobs(params), control, lists,
-                                    None if lists is None else lists.pairs, self.scratch, substeps)
-        if lists is not None:
-            self.lists = lists._replace(pairs=pairs)
+                                    self.knobs(params), control, self.lists, self.lists.pairs, self.scratch,
+                                    substeps)
+        self.lists = self.lists._replace(pairs=pairs)
         variant = self.variant(control, params)
         if variant not in self._warm:
             self._warm.add(variant)

@@ -48,6 +48,9 @@ class Knobs(NamedTuple):
     """the substep squared [s²]"""
     simulation_steps: int
     """substeps per frame: a self-collision push is divided by it"""
+    self_collision: bool
+    """whether pairs closer than twice the thickness push apart (a switch, not a
+    variant compiled apart: the viewer turns it live)"""
 
 
 class Control(NamedTuple):

@@ -98,7 +98,7 @@ def calls(variant: str) -> list:
     springs = build_stencil(rest, pinned, rows, cols)
     points = Points(rest=rest, free=np.ones(n), thickness=0.01, center=np.zeros(3), span=1e3)
     knobs = Knobs(gravity=np.zeros(3), k_over_m=np.ones(6), enabled=np.ones(6, dtype=bool), keep=1.0,
-                  dt2=1e-6, simulation_steps=1)
+                  dt2=1e-6, simulation_steps=1, self_collision=True)
     spheres = [SphereSpec((0.0, 0.0, 0.0), 0.1, 0.3)] if "spheres" in features else []
     planes = [PlaneSpec((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 0.5)] if "planes" in features else []
     control = Control.of(-1, np.zeros(3), spheres, planes)
@@ -111,20 +111,19 @@ def calls(variant: str) -> list:
     out = [(_farthest, (P, points.center)),
            (provot, (P, springs, knobs.enabled, scratch.masks[0], zero, i64, np.bool_(False))),
            (collide, (P, L, points.free, control, zero, i64))]
-    if "self" in features:
-        push, count, touched = lists.push, lists.count, lists.touched
-        out += [(apply_pushes, (P, push, count, points.free, 1.0, zero, i64)),
-                (apply_sparse, (P, push, count, points.free, 1.0, touched, lists.tally)),
-                (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, push[0], count[0], touched[0], zero,
-                               lists.pos32, f32)),
-                (near_pushes, (P, 0.02, lists.near_offset, lists.near_weight, push[0], count[0], touched[0],
-                               lists.near_masks[0], zero, np.int64(1), lists.near_level, True, 1.0, 1.0,
-                               lists.pos32, f32, False)),
-                (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
-                (_copy, (lists.pos32[:, :n], lists.reference)),
-                (_close_up, (lists.pairs, lists.tally, zero)),
-                (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
-                (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
+    push, count, touched = lists.push, lists.count, lists.touched
+    out += [(apply_pushes, (P, push, count, points.free, 1.0, zero, i64)),
+            (apply_sparse, (P, push, count, points.free, 1.0, touched, lists.tally)),
+            (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, push[0], count[0], touched[0], zero,
+                           lists.pos32, f32)),
+            (near_pushes, (P, 0.02, lists.near_offset, lists.near_weight, push[0], count[0], touched[0],
+                           lists.near_masks[0], zero, np.int64(1), lists.near_level, True, 1.0, 1.0,
+                           lists.pos32, f32, False)),
+            (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
+            (_copy, (lists.pos32[:, :n], lists.reference)),
+            (_close_up, (lists.pairs, lists.tally, zero)),
+            (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
+            (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
     out += [(gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
             (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero)),
             (_to_planes, (np.zeros((n, 3)), P)),

@@ -65,9 +65,8 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     The groups: ``points`` (:class:`~.groups.Points`), ``springs``
     (:class:`~.springs.GridSprings`), ``knobs`` (:class:`~.groups.Knobs`),
     ``control`` (:class:`~.groups.Control`), ``lists`` the
-    :class:`~.selfcollide.NeighbourList` or None without self-collision (then
-    none of its code is compiled), ``pairs`` its list of pairs now, and
-    ``scratch`` (:class:`~.groups.Scratch`).
+    :class:`~.selfcollide.NeighbourList` (used while ``knobs.self_collision``),
+    ``pairs`` its list of pairs now, and ``scratch`` (:class:`~.groups.Scratch`).
 
     Returns (largest squared distance of a point from ``points.center``
     afterwards, inf when the state is no longer finite; the pairs array of
@@ -88,7 +87,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     P, L, F, masks = scratch.P, scratch.L, scratch.F, scratch.masks
     free, center = points.free, points.center
     handle, handle_pos = control.handle, control.handle_pos
-    enabled, simulation_steps = knobs.enabled, knobs.simulation_steps
+    enabled, simulation_steps, self_collision = knobs.enabled, knobs.simulation_steps, knobs.self_collision
     ahead = springs.ahead
     parts = masks.shape[0]
     _to_planes(positions, P)
@@ -109,7 +108,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
             gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
         if handle >= 0:
             _hold(P, handle, handle_pos)
-        if lists is not None:
+        if self_collision:
             pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
         for t in prange(parts):
             lo, hi = _chunk_range(n, parts, t)
