@@ -26,7 +26,7 @@ build checks the rest layout: see :func:`~.selfcollide.nearstencil.grid_metric`)
 
 def build_compiled() -> bool:
     """Whether making a solver finds its kernels compiled (False: it compiles
-    them first, a few seconds once)."""
+    them first, once; see docs/performance.md, 'Compile time')."""
     return kernel_cache.is_warm(BUILD_VARIANT)
 
 
@@ -95,8 +95,8 @@ class ClothSolver:
 
     def is_compiled(self, control: Control, params: Params) -> bool:
         """Whether a step with these finds its kernels compiled, in this process
-        or in the cache; False means the next step compiles them first (tens of
-        seconds, once)."""
+        or in the cache; False means the next step compiles them first, once
+        (see docs/performance.md, 'Compile time')."""
         variant = self.variant(control, params)
         return variant in self._warm or kernel_cache.is_warm(variant)
 

@@ -32,13 +32,14 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
     block of BLOCK that has one, in the standard scenes). So the whole set is
     first checked in a vectorised loop without square roots that only sets a
     bit per spring over, and then only those springs are corrected, one by
-    one; correcting whole flagged blocks as vectors took 2.5 times as long
-    on pinned4. The check serves both batches: a spring of the second batch
-    can only have changed its length if a correction of the first moved one
-    of its ends, and those (the springs ``o`` before and after, ``o`` the
-    set's offset) are marked and checked again. Checking each batch on its
-    own walked a horizontal set twice. ``masks`` is uint64 scratch, (2, words),
-    a word per BLOCK springs of a set.
+    one, which spares the mostly wasted work of correcting whole flagged
+    blocks as vectors (figures: docs/performance.md, 'Provot'). The check
+    serves both batches: a spring of the second batch can only have changed
+    its length if a correction of the first moved one of its ends, and those
+    (the springs ``o`` before and after, ``o`` the set's offset) are marked
+    and checked again. Checking each batch on its own walked a horizontal set
+    twice. ``masks`` is uint64 scratch, (2, words), a word per BLOCK springs
+    of a set.
     """
     start, end, count = springs.start, springs.end, springs.count
     limit, batch, share = springs.limit, springs.batch, springs.share

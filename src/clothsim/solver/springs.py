@@ -167,8 +167,9 @@ def gather_ahead(P, L, free, knobs, springs, F, lo, hi):
 @njit(cache=True, inline="always")
 def has_springs(k_over_m):
     """Whether any spring set pulls: with every kind switched off, the substep
-    is plain Verlet under gravity, and writing and gathering six sets of zero
-    forces cost 9 us a substep on a 50x50 cloth, six times the step itself."""
+    is plain Verlet under gravity, without writing and gathering six sets of
+    zero forces, which cost several times the step itself (figures:
+    docs/performance.md, 'Springs')."""
     for s in range(k_over_m.shape[0]):
         if k_over_m[s] != 0.0:
             return True

@@ -15,7 +15,8 @@ from .selfcollide import self_collide
 
 PARALLEL_MIN_POINTS = 5000
 """cloths with fewer points run on one thread unless asked: each parallel
-region costs about a microsecond to start"""
+region costs time to start, which a small cloth's substep barely repays
+(figures: docs/performance.md, 'Threads')"""
 
 
 def parts_for(num_points: int, threads: int | None = None) -> int:
