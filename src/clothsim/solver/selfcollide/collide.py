@@ -1,4 +1,8 @@
-"""The self-collision stage of a substep: its passes in order."""
+"""The self-collision stage of a substep: its passes in order.
+
+The timings behind its thresholds and the order of its passes are in
+docs/performance.md ('List build', 'Pushes').
+"""
 
 from __future__ import annotations
 
@@ -21,8 +25,8 @@ writing them: see :func:`query_points`"""
 
 DENSE_COMPRESSED = 1.0
 """DENSE_LIST where the build appends with the compress: a piled-up 50x50 cloth
-(1.4 pairs a point) built its list 13% faster without the test, a hanging
-100x100 one (0.26) a fifth slower"""
+(1.4 pairs a point) built its list faster without the test, a hanging
+100x100 one (0.26) slower (docs/performance.md, 'List build')"""
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -105,8 +109,8 @@ def self_collide(P, points, simulation_steps, lists, pairs):
         return pairs, 0
     listed = meta[PAIRS]
     # a new list is labelled and sorted by slack (a pass of its own, with no
-    # branch: in one with the pushes, as it was, the substep of a build took
-    # 6.6 us longer at 50x50); every substep then checks the pairs whose slack
+    # branch: in one with the pushes, as it was, it made the substep of a
+    # build slower); every substep then checks the pairs whose slack
     # the drift bound reaches, on the substep of a build the touching ones.
     # Slack is measured in squared distance past the reach's square (no square
     # root per pair), in steps of the span up to the list radius's square

@@ -1,4 +1,7 @@
-"""The drift bound: how much closer any two points may have come since the list was built."""
+"""The drift bound: how much closer any two points may have come since the list was built.
+
+The timings behind its choices are in docs/performance.md ('Drift test').
+"""
 
 from __future__ import annotations
 
@@ -37,15 +40,14 @@ def drift_bound(Q, reference, skin, centres, spread):
     onto the floor). The pass takes the largest squared distance from each
     centre in DRIFT_LEVELS steps, as integers: a maximum of floats does not
     vectorise without assuming no NaN, and a NaN must count as drifted. It
-    reads single precision, sixteen points at a time: in double precision the
-    test took 0.6 us longer a substep at 50x50. B is widened past what the
-    rounding may hide.
+    reads single precision, sixteen points at a time, twice as many as in
+    double precision. B is widened past what the rounding may hide.
 
     ``centres`` (2, 3) keeps the last centres chosen, and they are tried
-    first: choosing them from the sample cost half again as much as the
-    pass, and the displacements change little from one substep to the
-    next, so old centres mostly still hold. Only when neither does are
-    new ones chosen and tried.
+    first: choosing them from the sample costs more than the pass itself,
+    and the displacements change little from one substep to the next, so
+    old centres mostly still hold. Only when neither does are new ones
+    chosen and tried.
     """
     level = _level_both(Q, reference, skin, centres)
     if level >= DRIFT_LEVELS:
@@ -144,12 +146,12 @@ def _to_single(P, ox, oy, oz, Q, lo, hi):
     """Points ``lo:hi`` of P from (ox, oy, oz) in single precision into ``Q``; returns
     the bits of the largest magnitude so written, as an int32. The magnitudes
     are taken on the bits, whose order is theirs: a maximum of floats does
-    not vectorise, and the pass took six times as long."""
+    not vectorise."""
     most = np.int32(0)
     m = hi - lo
     for c in range(3):
         # views from lo: indexed from lo into the whole planes, the loop ran
-        # scalar inside the substep (4.8 us instead of 0.7 at 50x50)
+        # scalar inside the substep
         x, q = P[c, lo:hi], Q[c, lo:hi]
         bits = q.view(np.int32)
         o = ox if c == 0 else (oy if c == 1 else oz)

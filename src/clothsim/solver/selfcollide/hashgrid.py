@@ -1,4 +1,7 @@
-"""The spatial hash: a dense grid of cells over the cloth's box, filled by a counting sort."""
+"""The spatial hash: a dense grid of cells over the cloth's box, filled by a counting sort.
+
+The timings behind its choices are in docs/performance.md ('Cell sort').
+"""
 
 from __future__ import annotations
 
@@ -15,9 +18,9 @@ reach at most one cell past its own along y and z)"""
 
 X_SPLIT = 4
 """cells are this many times narrower along x: a row of cells is one range of
-memory, so narrow cells only trim the range to the search sphere's width
-(the list build took 16% less time on a piled-up 100x100 cloth, 32% on a flat
-200x200 one, than with cubic cells; 6 and 8 gained no more)"""
+memory, so narrow cells only trim the range to the search sphere's width,
+which made the list build markedly faster than cubic cells on piled-up and
+flat cloths; 6 and 8 gained no more (docs/performance.md, 'Cell sort')"""
 
 SEARCH_ROWS = 5
 """the rows of ``search``: a point's cell, the first cell of its row of cells,
@@ -26,7 +29,7 @@ and a bit per row of cells :func:`query_points` may search (its ``rows``):
 the point's own (always), the next along y, and those of the next layer
 along z below, at and above the point's row. The query walks the set bits:
 tested one by one, the rows' conditions cost a mispredicted branch or two
-per point, and the build took 5% longer"""
+per point"""
 
 CELLS_PER_POINT = 8
 """most grid cells per point; a cloth spread wider gets coarser cells"""
@@ -49,8 +52,8 @@ def sort_into_cells(P, radius, span, lists):
 
     ``search`` (SEARCH_ROWS, N) gets each point's cell and the rows and columns
     of cells its search sphere overlaps (see :func:`query_points`), worked
-    out here in a loop that vectorises: worked out per point in the query,
-    with a loop over the rows, they took a third of its time.
+    out here in a loop that vectorises rather than per point in the query,
+    with a loop over the rows.
 
     Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
     the points are not finite or spread wider than ``span``: no list then.
@@ -114,9 +117,8 @@ def sort_into_cells(P, radius, span, lists):
         cell_start[c] = cell_start[c + 1]
     cell_start[cells] = n
     # walked row by row of the cloth, so each point's row and column come from the
-    # loops: dividing them out per candidate pair cost 5-10% of the build, and
-    # counting them along in one loop chained every point to the last (13 us
-    # instead of 4.6 at 50x50)
+    # loops: dividing them out cost two divisions per candidate pair, and
+    # counting them along in one loop chained every point to the last
     sx, sy, sz, grid_row, grid_col = sorted_pos[0], sorted_pos[1], sorted_pos[2], sorted_pos[3], sorted_pos[4]
     for first in range(0, n, cols):
         row = np.float32(first // cols)
@@ -144,7 +146,7 @@ def bounds(P, lo, hi):
     """The box of the (3, N) points into ``lo`` and ``hi``; False if any coordinate is
     not finite. Works on the bits: flipping the magnitude bits of negative
     numbers orders doubles as integers, and a min or max of integers
-    vectorises where one of doubles does not (5x faster at 50x50)."""
+    vectorises where one of doubles does not."""
     bad = np.int64(0)
     lo_bits, hi_bits = lo.view(np.int64), hi.view(np.int64)
     for c in range(3):

@@ -1,4 +1,7 @@
-"""The list build: every pair within the list radius, found from the sorted cells."""
+"""The list build: every pair within the list radius, found from the sorted cells.
+
+The timings behind its choices are in docs/performance.md ('List build').
+"""
 
 from __future__ import annotations
 
@@ -17,10 +20,11 @@ NARROW = 16
 """candidates tested together in a range of at most LONG_RANGE slots"""
 
 LONG_RANGE = 48
-"""candidate ranges longer than this are tested WIDE slots at a time: on a
-piled-up 100x100 cloth, where ranges hold about a hundred slots, that took
-a fifth less time than NARROW; on the ranges of a 50x50 cloth (under 16
-slots) and of a hanging 100x100 one (about 30) NARROW is faster"""
+"""candidate ranges longer than this are tested WIDE slots at a time: that is
+faster than NARROW on a piled-up 100x100 cloth, where ranges hold about a
+hundred slots; on the ranges of a 50x50 cloth (under 16 slots) and of a
+hanging 100x100 one (about 30) NARROW is faster (figures:
+docs/performance.md, 'List build')"""
 
 COMPRESS = has_compress()
 """whether the list build appends a chunk's pairs with AVX-512's compress
@@ -67,12 +71,12 @@ def query_points(grid, reach, radius, rest, lists, first, stop, pairs, base, cap
     candidate inside the radius and not one of the grid neighbours that
     ``near_metric`` (:func:`grid_metric`) marks as never listed. A range of a
     50x50 cloth holds a few slots, and a loop over exactly those ended in a
-    mispredicted branch per range: the fixed width took a quarter to a third
-    less time. Slots past the range are read (``sorted_pos`` is padded) and
-    masked out. The test runs in single precision, on positions from the
-    grid's corner, with the radius widened by more than the rounding of
-    either end can move them: no pair inside the radius is missed, and a
-    pair a hair outside may be listed, which only costs its check.
+    mispredicted branch per range, which the fixed width has not. Slots past
+    the range are read (``sorted_pos`` is padded) and masked out. The test
+    runs in single precision, on positions from the grid's corner, with the
+    radius widened by more than the rounding of either end can move them: no
+    pair inside the radius is missed, and a pair a hair outside may be
+    listed, which only costs its check.
 
     Where the rest layout lets no further test reject a pair (``near_metric``
     exact) and the pairs array has room, the bits go straight into it
@@ -81,10 +85,10 @@ def query_points(grid, reach, radius, rest, lists, first, stop, pairs, base, cap
     (:func:`_put_checked`). A ``sparse`` build first skips the chunks with no
     bit: a build on a hanging cloth (few pairs per point), where that branch
     is nearly always right. In a crowded build it was wrong about as often as
-    not, and leaving it out made the build a fifth faster with the scalar
-    append, 13% with the compress (see DENSE_LIST, DENSE_COMPRESSED). The
-    ranges are walked with unsigned indices: with signed ones numba adds a
-    negative-index wraparound that turns the loads into gathers.
+    not, and the build is faster without it, with either append (see
+    DENSE_LIST, DENSE_COMPRESSED). The ranges are walked with unsigned
+    indices: with signed ones numba adds a negative-index wraparound that
+    turns the loads into gathers.
     """
     cell_start, search, slot, order = lists.cell_start, lists.search, lists.slot, lists.order
     sorted_pos, near_table, near_metric = lists.sorted_pos, lists.near_table, lists.near_metric
@@ -157,9 +161,9 @@ def _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radi
     the point at (x, y, z), grid row gr and column gc, and is not a grid
     neighbour inside the ellipse of :func:`grid_metric`. ``width`` (a multiple
     of LANES, at most 64) slots are read, whatever ``hi``. All in single
-    precision, LANES slots at a time (:func:`clothsim.solver.simd.inside`):
-    as a loop that ored a shifted bit per slot the build took an eighth
-    longer."""
+    precision, LANES slots at a time (:func:`clothsim.solver.simd.inside`),
+    whose comparison becomes the mask directly: a loop that ored a shifted
+    bit per slot made LLVM fold the lanes in a chain of shuffles."""
     mask = np.uint64(0)
     for c in range(0, width, LANES):
         bits = inside(sx, sy, sz, grid_row, grid_col, np.uint64(at + c), x, y, z, gr, gc, radius2, wr2, wc2,
@@ -203,9 +207,9 @@ def _put_compressed(mask, at, order, pairs, pk, end, width):
     """:func:`_put` with AVX-512's compress, LANES bits of the ``width`` at a time: all
     LANES points of the slots are loaded, the chosen ones packed to the front
     and stored with pk beside each, and the end moves on by their number. No
-    branch depends on the bits; on a piled-up 50x50 cloth the build took 15%
-    less time. Up to LANES pairs past the new end are overwritten (PUT_ROOM),
-    and ``order`` is read up to ``width`` slots past ``at`` (PAD)."""
+    branch depends on the bits, so none is mispredicted however many are
+    set. Up to LANES pairs past the new end are overwritten (PUT_ROOM), and
+    ``order`` is read up to ``width`` slots past ``at`` (PAD)."""
     e = np.uint64(end)
     for c in range(0, width, LANES):
         for j in range(LANES):

@@ -1,4 +1,9 @@
-"""The near stencil: grid offsets whose pairs sit inside the list radius at rest, checked every substep."""
+"""The near stencil: grid offsets whose pairs sit inside the list radius at rest, checked every substep.
+
+The timings behind its choices are in docs/performance.md ('Near stencil';
+those of the rest layout's metric, which serves the list build, in 'List
+build').
+"""
 
 from __future__ import annotations
 
@@ -44,11 +49,11 @@ def skin_factor(rest: np.ndarray, rows: int, cols: int, thickness: float) -> flo
     cloth per offset and substep. A coarse cloth (at most COARSE_OFFSETS
     offsets inside even COARSE_SKIN: its rows, columns and diagonals, as in
     every standard scene) takes COARSE_SKIN: at 50x50 the cloth on the
-    sphere rebuilt its list 5.0 times per 100 substeps instead of 7.4 and
-    self-collision cost 10.7 us a substep instead of 13.4. A finer one keeps
-    SKIN_FACTOR: at 100x100 the wider skin took rings of grid neighbours
-    into the stencil and cost 2-5%, at 200x200 half again, as offsets past
-    NEAR went into the list for good.
+    sphere rebuilt its list 5.0 times per 100 substeps instead of 7.4, for
+    two more stencil offsets, and self-collision got cheaper. A finer one
+    keeps SKIN_FACTOR: at 100x100 the wider skin took rings of grid
+    neighbours into the stencil and made self-collision slower, at 200x200
+    more so, as offsets past NEAR went into the list for good.
     """
     if rows < 2 or cols < 2:
         return SKIN_FACTOR
@@ -72,7 +77,7 @@ def near_stencil(rest: np.ndarray, rows: int, cols: int, thickness: float,
     (those are never pushed), a (NEAR+1, 2*NEAR+1) table of the (dr, di)
     taken, and the :func:`grid_metric` of the offsets the list never holds.
     One byte per pair: a 200x200 cloth has 28 offsets, and as float64 the
-    mask (9 MB) outgrew the cache; the stencil took 2.9 times as long.
+    mask (9 MB) outgrew the cache.
     """
     n = rows * cols
     reach = 2.0 * thickness
@@ -113,7 +118,7 @@ def grid_metric(rest: np.ndarray, rows: int, cols: int, never: np.ndarray,
     The list build then drops such candidates in its vectorised first test,
     from their grid rows and columns, instead of sending them through the
     exact tests, which reject them anyway: on a 100x100 cloth they were over
-    half the candidates inside the radius and the build took 13% longer.
+    half the candidates inside the radius.
     rho² lies halfway between the nominal squared distances of the farthest
     marked offset inside it and the nearest offset not marked, so the ellipse
     holds only marked offsets, also when the build tests it in single
@@ -121,10 +126,9 @@ def grid_metric(rest: np.ndarray, rows: int, cols: int, never: np.ndarray,
 
     ``exact`` is 1 when the ellipse holds every marked offset and every pair
     closer than ``reach`` at rest: the exact tests can then reject nothing
-    the first test let through, and the build skips them (a quarter of its
-    time on a piled-up 100x100 cloth). Both are properties of the rest
-    layout, checked here once: a regular grid passes, a cloth whose rest
-    layout is warped may not.
+    the first test let through, and the build skips them. Both are
+    properties of the rest layout, checked here once: a regular grid passes,
+    a cloth whose rest layout is warped may not.
     """
     metric = np.zeros(4)
     if rows < 2 or cols < 2 or not never.any():
@@ -217,8 +221,8 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
         nblocks = (m + BLOCK - 1) // BLOCK
         first = part * nblocks // parts * BLOCK
         stop = min((part + 1) * nblocks // parts * BLOCK, m)
-        # views made once per offset, unsigned indices into them: views made
-        # per block cost a tenth of the check on a 50x50 cloth
+        # views made once per offset, unsigned indices into them: made per
+        # block, the views cost a visible share of the check on a small cloth
         xb, yb, zb = x[o:], y[o:], z[o:]
         qx, qy, qz = Q[0], Q[1], Q[2]
         blocks = 0

@@ -1,4 +1,7 @@
-"""The pushes: pairs closer than the reach pushed apart, and the points moved by their pushes."""
+"""The pushes: pairs closer than the reach pushed apart, and the points moved by their pushes.
+
+The timings behind their choices are in docs/performance.md ('Pushes').
+"""
 
 from __future__ import annotations
 
@@ -17,19 +20,18 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, 
     Pairs ``k0:sure`` are pushed without a branch on whether they touch:
     every one adds its push, zero where it does not. That costs a square
     root and the stores for each, and pays where about half of them touch
-    and the branch would be mispredicted as often: on the pairs that
-    touched at the build, the pair pass of a piling 50x50 cloth took a
-    sixth less time. Pairs ``sure:k1`` rarely touch and keep the branch;
-    they are first tested on ``Q``, the positions in single precision,
-    against ``wide2`` (see :func:`near_pushes`): half the memory to gather
-    from, and the pass took 3% less time at 50x50.
+    and the branch would be mispredicted as often, as on the pairs that
+    touched at the build. Pairs ``sure:k1`` rarely touch and keep the
+    branch; they are first tested on ``Q``, the positions in single
+    precision, against ``wide2`` (see :func:`near_pushes`): half the memory
+    to gather from.
     """
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
     hits = 0
     room = touched.shape[0] // 2 - 1
     for k in range(k0, sure):
-        # unsigned: a signed index costs a negative-index check per access, 12-20% here
+        # unsigned: a signed index costs a negative-index check per access
         a = np.uint64(pairs[0, k])
         b = np.uint64(pairs[1, k])
         dx = x[a] - x[b]
@@ -92,11 +94,11 @@ def apply_sparse(P, push, count, free, inv_steps, touched, tally):
     noted all of its pairs in ``touched`` (``tally[t, 1]`` pairs in part t).
 
     A hanging cloth pushes a few pairs in a substep, and a pass over every
-    point cost as much as the near stencil. A point noted again has been
-    applied and zeroed by then, so applying it again moves it by nothing.
+    point then costs far more than moving their ends. A point noted again
+    has been applied and zeroed by then, so applying it again moves it by
+    nothing.
     Each end is moved by plain scalar code: :func:`apply_pushes` over a
-    range of one point cost 50 ns an end in the views it makes, as much as
-    the full pass once a drape pushed some 30 pairs.
+    range of one point spent most of its time making its array views.
     """
     parts = push.shape[0]
     for t in range(parts):
@@ -124,8 +126,7 @@ def apply_pushes(P, push, count, free, inv_steps, lo, hi):
     pairs and divided by the substeps; sums the parts' pushes into part 0 first.
     The pushes and counts are left at zero for the next substep: a separate pass
     to clear them would run every substep, this one only when something collided.
-    One loop moves and clears each point (a loop per coordinate took 40% longer
-    at 50x50)."""
+    One loop moves and clears each point, not a loop per coordinate."""
     parts = push.shape[0]
     m = hi - lo
     c0 = count[0, lo:]

@@ -1,4 +1,7 @@
-"""The slack sort: the list ordered by how far past the reach each pair was at the build."""
+"""The slack sort: the list ordered by how far past the reach each pair was at the build.
+
+The timings behind its choices are in docs/performance.md ('Slack sort').
+"""
 
 from __future__ import annotations
 
@@ -28,15 +31,17 @@ def label_pairs(P, reach, pairs, k0, k1, labels, scale):
 
 
 SORT_LANES = 8
-"""runs of the list each part of :func:`sort_by_slack` walks side by side: on a
-list of 75,000 pairs 8 took 104 us, 4 took 117, 2 took 167 and one 206"""
+"""runs of the list each part of :func:`sort_by_slack` walks side by side, so
+that the others go on while one run's count waits on its last store: of 1,
+2, 4 and 8 runs, 8 sorted a long list fastest (figures: docs/performance.md,
+'Slack sort')"""
 
 
 @njit(**EXACT_OPTIONS, inline="always")
 def sort_by_slack(pairs, labels, listed, meta, parts):
     """The list's first ``listed`` pairs ordered by their ``labels`` (slack buckets),
     keeping the order within a bucket, in a new array as large as ``pairs``
-    (copying them back took a fifth of the sort); where each bucket ends goes
+    (copying them back would be a pass more); where each bucket ends goes
     into ``meta[BUCKET:]``.
 
     A pair of the list started ``slack`` past the reach, and it cannot touch
@@ -52,8 +57,7 @@ def sort_by_slack(pairs, labels, listed, meta, parts):
     with a counter row per run: a single run's next count or place waits on
     the store of its last whenever two labels in a row are alike. Its loops
     are inlined here, where ``out`` is allocated: compiled apart, each store
-    into ``out`` might have changed a counter, which was then read again, and
-    the sort took half again as long.
+    into ``out`` might have changed a counter, which was then read again.
     """
     runs = parts * SORT_LANES
     at = np.zeros((runs, SLACK_BUCKETS), dtype=np.int64)
