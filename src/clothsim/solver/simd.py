@@ -33,9 +33,11 @@ LANES = 16
 
 FORCE_PORTABLE = "CLOTHSIM_NO_AVX512"
 """set (to anything but empty) in the environment to compile the portable path
-on a machine that has AVX-512: how the tests check that path. numba's cache
-does not know of it, so it takes effect where the kernels are compiled
-afresh (the tests point NUMBA_CACHE_DIR at an empty folder)"""
+on a machine that has AVX-512: how the tests check that path. It takes effect
+when the list build's module is imported (its ``COMPRESS``), and
+:mod:`clothsim.kernel_cache` keys numba's cache folder on its value, so a run
+with it set compiles into, and loads from, a folder of its own, never the
+AVX-512 kernels"""
 
 
 def target_features() -> str:
