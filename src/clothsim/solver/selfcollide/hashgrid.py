@@ -70,14 +70,19 @@ def sort_into_cells(P, radius, span, lists):
     if not ext <= span:
         return grid
     size = CELL_FACTOR * radius
+    if not size > 0.0:
+        return grid  # no radius to search (and no cell size that could grow)
     budget = cell_start.shape[0] - 1
     while True:
-        nx = np.int64((hi[0] - lo[0]) * X_SPLIT / size) + 1
-        ny = np.int64((hi[1] - lo[1]) / size) + 1
-        nz = np.int64((hi[2] - lo[2]) / size) + 1
-        if nx * ny * nz <= budget:
+        # the counts are floats until they fit: for a tiny radius they would
+        # overflow an int64, and a wrapped count would pass the budget test
+        fx = np.floor((hi[0] - lo[0]) * X_SPLIT / size) + 1.0
+        fy = np.floor((hi[1] - lo[1]) / size) + 1.0
+        fz = np.floor((hi[2] - lo[2]) / size) + 1.0
+        if fx * fy * fz <= budget:
             break
         size *= 1.25
+    nx, ny, nz = np.int64(fx), np.int64(fy), np.int64(fz)
     cells = nx * ny * nz
     inv = 1.0 / size
     inv_x = X_SPLIT / size
