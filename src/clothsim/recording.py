@@ -1,4 +1,5 @@
-"""Per-frame exports: an OBJ sequence for Blender/Houdini, a NumPy trajectory."""
+"""Per-frame exports: an OBJ sequence for Blender/Houdini, and the whole-run files
+(a NumPy trajectory, USD, a web player) written from the frames once the run ends."""
 
 from __future__ import annotations
 
@@ -11,22 +12,53 @@ import numpy as np
 from .export import write_obj
 from .outputs import OutputError, atomic_path, check_writable
 from .simulation import Simulation
+from .trajectory import Trajectory, TrajectoryRecorder
+
+
+def _write_npz(path: Path, traj: Trajectory) -> None:
+    buf = io.BytesIO()
+    np.savez_compressed(buf, positions=traj.positions, times=traj.times, triangles=traj.triangles,
+                        uvs=traj.uvs, scene=np.array(json.dumps(traj.scene)))
+    path.write_bytes(buf.getvalue())
+
+
+def _write_usd(path: Path, traj: Trajectory) -> None:
+    from .export.usd import write_usd
+
+    write_usd(path, traj)
+
+
+def _write_player(path: Path, traj: Trajectory) -> None:
+    from .export.web import write_player
+
+    write_player(path, traj)
+
+
+WRITERS = {"npz": _write_npz, "usd": _write_usd, "html": _write_player}
+"""the whole-run formats: each writer takes the (temporary) path to write and the trajectory"""
 
 
 class FrameRecorder:
     """Called after every frame; writes or collects what was asked for.
 
-    ``sequence_dir`` gets ``frame_0000.obj`` (the start) onward; ``npz_path``
-    gets ``positions[frame, point, 3]`` (frame 0 is the start), ``times``,
-    ``triangles``, ``uvs`` and the scene as JSON text.
+    ``sequence_dir`` gets ``frame_0000.obj`` (the start) onward. ``outputs`` maps
+    a whole-run format of :data:`WRITERS` to its path: ``npz`` gets
+    ``positions[frame, point, 3]`` (frame 0 is the start), ``times``,
+    ``triangles``, ``uvs`` and the scene as JSON text; ``usd`` a time-sampled
+    USD stage; ``html`` a self-contained web player. Every path is checked
+    before the run and written whole, or not at all, after it.
     """
 
     def __init__(self, sim: Simulation, sequence_dir: str | None = None, npz_path: str | None = None,
-                 overwrite: bool = False) -> None:
+                 overwrite: bool = False, outputs: dict[str, str] | None = None) -> None:
         self.sequence_dir = Path(sequence_dir) if sequence_dir else None
-        self.npz_path = Path(npz_path) if npz_path else None
-        if self.npz_path:
-            check_writable(self.npz_path, overwrite)
+        self.outputs = {kind: Path(p) for kind, p in (outputs or {}).items() if p}
+        if npz_path:
+            self.outputs["npz"] = Path(npz_path)
+        for kind, path in self.outputs.items():
+            if kind not in WRITERS:
+                raise ValueError(f"no writer for {kind!r}")
+            check_writable(path, overwrite)
         if self.sequence_dir:
             if self.sequence_dir.exists() and not self.sequence_dir.is_dir():
                 raise OutputError(f"{self.sequence_dir}: exists and is not a folder")
@@ -34,26 +66,25 @@ class FrameRecorder:
                 raise OutputError(f"{self.sequence_dir}: already holds frame_*.obj files; "
                                   "pass --overwrite to replace them")
             self.sequence_dir.mkdir(parents=True, exist_ok=True)
-        self._frames: list[np.ndarray] = []
-        self._times: list[float] = []
-        self.active = bool(self.sequence_dir or self.npz_path)
-        if self.active:
-            self(sim)
+        self._frames = TrajectoryRecorder(sim) if self.outputs else None
+        self.active = bool(self.sequence_dir or self.outputs)
+        if self.sequence_dir:
+            self._write_frame(sim)
+
+    def _write_frame(self, sim: Simulation) -> None:
+        write_obj(self.sequence_dir / f"frame_{sim.frame:04d}.obj", sim.positions, sim.normals,
+                  sim.model.uvs, sim.model.triangles)
 
     def __call__(self, sim: Simulation) -> None:
         if self.sequence_dir:
-            write_obj(self.sequence_dir / f"frame_{sim.frame:04d}.obj", sim.positions, sim.normals,
-                      sim.model.uvs, sim.model.triangles)
-        if self.npz_path:
-            self._frames.append(sim.positions.copy())
-            self._times.append(sim.time)
+            self._write_frame(sim)
+        if self._frames is not None:
+            self._frames(sim)
 
     def finish(self, sim: Simulation) -> None:
-        if not self.npz_path:
+        if self._frames is None:
             return
-        buf = io.BytesIO()
-        np.savez_compressed(buf, positions=np.stack(self._frames), times=np.array(self._times),
-                            triangles=np.asarray(sim.model.triangles), uvs=np.asarray(sim.model.uvs),
-                            scene=np.array(json.dumps(sim.scene.to_dict())))
-        with atomic_path(self.npz_path) as tmp:
-            tmp.write_bytes(buf.getvalue())
+        traj = self._frames.trajectory(sim)
+        for kind, path in self.outputs.items():
+            with atomic_path(path) as tmp:
+                WRITERS[kind](tmp, traj)

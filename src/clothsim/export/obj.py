@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .outputs import write_atomic
+from ..outputs import write_atomic
 
 
 def obj_text(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, triangles: np.ndarray) -> str:
