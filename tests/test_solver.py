@@ -7,24 +7,50 @@ import itertools
 import os
 import subprocess
 import sys
+from typing import NamedTuple
 
 import numpy as np
 import pytest
 
 from clothsim.model import build_model
 from clothsim.scene import ClothSpec
-from clothsim.solver.collide import PLANE_OFFSET, collide_planes, collide_spheres
-from clothsim.solver.grid import (BLOCK, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
-                                  integrate, provot)
+from clothsim.solver.colliders import PLANE_OFFSET, collide_planes, collide_spheres
+from clothsim.solver.groups import Knobs, Points
+from clothsim.solver.provot import provot
+from clothsim.solver.selfcollide import NeighbourList, near_stencil, self_collide
+from clothsim.solver.selfcollide.buffers import BUCKET, NEAR, PAIRS, SKIN, SLACK_BUCKETS, SPARSE_PAIRS, WIDE
+from clothsim.solver.selfcollide.drift import drift_bound
+from clothsim.solver.selfcollide.hashgrid import bounds
+from clothsim.solver.selfcollide.listbuild import COMPRESS, NARROW, build_list
+from clothsim.solver.selfcollide.nearstencil import COARSE_SKIN, NEAR_LEVELS, SKIN_FACTOR, grid_metric, skin_factor
+from clothsim.solver.selfcollide.slack import checked_pairs
+from clothsim.solver.shared import BLOCK
 from clothsim.solver.simd import FORCE_PORTABLE, has_compress
-from clothsim.solver.self_collide import (COMPRESS, NARROW, SPARSE_PAIRS, WIDE, NeighbourList, _bounds, _drift_bound, build_list,
-                                          self_collide)
+from clothsim.solver.springs import CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer, integrate
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
     spec = ClothSpec(width=spacing * (nw - 1), height=spacing * (nh - 1), num_width_points=nw,
                      num_height_points=nh, thickness=0.01, orientation=0, pinned=list(pinned))
     return build_model(spec)
+
+
+def stencil(m):
+    """the model's springs as the solver's grid stencil"""
+    return build_stencil(m.rest_positions, m.pinned, m.num_height_points, m.num_width_points)
+
+
+def knobs(k_sets, gravity, keep, dt2):
+    """the live parameters as integrate() takes them"""
+    return Knobs(gravity=np.asarray(gravity, dtype=np.float64), k_over_m=np.asarray(k_sets, dtype=np.float64),
+                 enabled=np.ones(6, dtype=bool), keep=float(keep), dt2=float(dt2), simulation_steps=1,
+                 self_collision=False)
+
+
+def run_integrate(P, L, free, k, springs, F):
+    """one step of integrate() over the whole cloth"""
+    n = P.shape[1]
+    integrate(P, L, free, k, springs, F, 0, n, 0)
 
 
 def planes(pos: np.ndarray) -> np.ndarray:
@@ -34,7 +60,7 @@ def planes(pos: np.ndarray) -> np.ndarray:
 def test_stencil_sets_are_the_model_springs():
     """the six offset sets hold exactly the model's springs, with their rest lengths"""
     m = grid_model(7, 5)
-    st = build_stencil(m)
+    st = stencil(m)
     found = set()
     for s in range(6):
         for p in np.flatnonzero(st.valid[s]):
@@ -58,11 +84,11 @@ def reference_accelerations(pos, m, k_kind, gravity):
 
 def accelerations(pos, m, k_sets, gravity):
     """the acceleration integrate() applies: one step with dt = 1 from rest (x_prev = x)"""
-    st = build_stencil(m)
+    st = stencil(m)
     P = planes(pos)
     L = P.copy()
-    integrate(P, L, gravity, k_sets, np.ones(m.num_points), 0.7, 1.0, st.start, st.end, st.count,
-              st.valid, st.rest, force_buffer(st, m.num_points))
+    run_integrate(P, L, np.ones(m.num_points), knobs(k_sets, gravity, 0.7, 1.0), st,
+                  force_buffer(st, m.num_points))
     np.testing.assert_array_equal(L, planes(pos))  # x_prev <- x
     return (P - planes(pos)).T
 
@@ -87,23 +113,22 @@ def test_disabled_kind_adds_no_force():
     pos = m.rest_positions * 2.0
     g = np.array([0, -9.8, 0.0])
     np.testing.assert_allclose(accelerations(pos, m, np.zeros(6), g), np.tile(g, (m.num_points, 1)))
-    st = build_stencil(m)
+    st = stencil(m)
     F = force_buffer(st, m.num_points)
     for k_sets in (np.full(6, 5.0), np.zeros(6)):
         P, L = planes(pos), planes(pos)
-        integrate(P, L, g, k_sets, np.ones(m.num_points), 0.0, 1.0, st.start, st.end, st.count,
-                  st.valid, st.rest, F)
+        run_integrate(P, L, np.ones(m.num_points), knobs(k_sets, g, 0.0, 1.0), st, F)
     np.testing.assert_allclose((P - planes(pos)).T, np.tile(g, (m.num_points, 1)))
 
 
 def test_verlet_formula_and_pins():
     """x' = x + (1-d)(x - x_prev) + a dt^2 for free points; pinned points untouched"""
     m = grid_model(2, 2)
-    st = build_stencil(m)
+    st = stencil(m)
     P = planes(np.array([[1.0, 2, 3], [2.0, 2, 3], [0, 0, 0], [0, 0, 0]]))
     L = planes(np.array([[0.5, 2, 3], [1.5, 2, 3], [0, 0, 0], [0, 0, 0]]))
-    integrate(P, L, np.array([0.0, -10, 0]), np.zeros(6), np.array([1.0, 0.0, 1.0, 1.0]), 0.9, 0.01,
-              st.start, st.end, st.count, st.valid, st.rest, force_buffer(st, 4))
+    run_integrate(P, L, np.array([1.0, 0.0, 1.0, 1.0]), knobs(np.zeros(6), [0.0, -10, 0], 0.9, 0.01), st,
+                  force_buffer(st, 4))
     np.testing.assert_allclose(P[:, 0], [1.0 + 0.9 * 0.5, 2 - 0.1, 3])
     np.testing.assert_allclose(L[:, 0], [1.0, 2, 3])
     np.testing.assert_array_equal(P[:, 1], [2.0, 2, 3])
@@ -111,11 +136,11 @@ def test_verlet_formula_and_pins():
 
 def run_provot(m, pos, enabled, windows=None):
     """The kernel's pass over each window (lo, hi, crossing) in turn; by default all springs."""
-    st = build_stencil(m)
+    st = stencil(m)
     P = planes(pos)
     for lo, hi, crossing in windows or [(0, m.num_points, False)]:
-        provot(P, np.asarray(enabled), st.start, st.end, st.count, st.limit, st.batch, st.share,
-               np.zeros((2, m.num_points // BLOCK + 2), np.uint64), lo, hi, crossing)
+        provot(P, st, np.asarray(enabled), np.zeros((2, m.num_points // BLOCK + 2), np.uint64), lo, hi,
+               crossing)
     return P.T.copy()
 
 
@@ -142,7 +167,7 @@ def in_window(a, b, window):
 def reference_provot(m, pos, enabled, windows=None):
     """Plain sequential Gauss-Seidel over the springs in the kernel's batch order,
     window by window."""
-    st = build_stencil(m)
+    st = stencil(m)
     pos = pos.copy()
     pinned = m.pinned
     for window, s, half in itertools.product(windows or [(0, m.num_points, False)], range(6), range(2)):
@@ -181,7 +206,7 @@ def test_provot_in_parts_takes_each_spring_once():
     cut), the pass takes every spring exactly once and equals the sequential pass
     in that order; the parts' passes touch no point outside their part"""
     m = grid_model(8, 9, pinned=[(0, 0), (7, 0)])
-    st = build_stencil(m)
+    st = stencil(m)
     n = m.num_points
     cuts = [0, 21, 45, n]  # not on row boundaries
     windows = [(lo, hi, False) for lo, hi in zip(cuts, cuts[1:])] + [(c, c, True) for c in cuts[1:-1]]
@@ -236,7 +261,7 @@ def test_provot_checks_again_what_the_first_batch_stretched():
 def test_provot_batches_share_no_point():
     """the premise of the batching: within a batch no point is touched twice"""
     m = grid_model(9, 8)
-    st = build_stencil(m)
+    st = stencil(m)
     for s in range(6):
         for half in range(2):
             p = np.flatnonzero((st.limit[s] < NO_LIMIT) & (st.batch[s] == half))
@@ -276,15 +301,33 @@ def test_plane_friction_one_returns_to_last():
     np.testing.assert_allclose(P[:, 0], L[:, 0])
 
 
+def points_group(rest, free, thickness, span=np.inf):
+    """the points group as self-collision takes it (the blow-up centre is not read there)"""
+    return Points(rest=np.array(rest, dtype=np.float64), free=np.asarray(free, dtype=np.float64),
+                  thickness=float(thickness), center=np.zeros(3), span=float(span))
+
+
+def collide_in_place(P, rest, free, thickness, steps, lists, span=np.inf):
+    """self_collide() on the (3, N) positions P in place: (the list with its pairs now, colliding pairs)"""
+    pairs, hits = self_collide(P, points_group(rest, free, thickness, span), steps, lists, lists.pairs)
+    return lists._replace(pairs=pairs), hits
+
+
+def build(P, rest, reach, radius, lists, pairs, sparse=True):
+    """build_list() of the (3, N) positions P into ``pairs``, with no span"""
+    return build_list(P, np.array(rest, dtype=np.float64), reach, radius, np.inf, lists, pairs, sparse)
+
+
 def _self_collide(pos, rest, thickness, steps=1, pinned=None, lists=None):
-    """Run the kernel on (N, 3) positions in place; return the number of colliding pairs."""
+    """Run the kernel on (N, 3) positions in place; return (the number of colliding
+    pairs, the neighbour list with its pairs now)."""
     n = len(pos)
     free = np.ones(n) if pinned is None else (~pinned).astype(float)
-    x = NeighbourList(n) if lists is None else lists
+    x = NeighbourList.allocate(n) if lists is None else lists
     P = planes(pos)
-    x.pairs, hits = self_collide(P, rest, free, thickness, steps, np.inf, *x.buffers())
+    x, hits = collide_in_place(P, rest, free, thickness, steps, x)
     pos[:] = P.T
-    return hits
+    return hits, x
 
 
 def test_self_collision_pushes_pair_apart():
@@ -293,7 +336,7 @@ def test_self_collision_pushes_pair_apart():
     pos = np.array([[0.995, 0.5, 0.5], [1.005, 0.5, 0.5]])
     before = pos.copy()
     rest = np.array([[0.0, 0, 0], [5.0, 0, 0]])  # far apart at rest
-    assert _self_collide(pos, rest, t) == 1
+    assert _self_collide(pos, rest, t)[0] == 1
     np.testing.assert_allclose(np.linalg.norm(pos[0] - before[1]), 2 * t, rtol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(pos[1] - before[0]), 2 * t, rtol=1e-12)
 
@@ -305,11 +348,11 @@ def test_self_collision_pushes_once():
     t = 0.01
     pos = np.array([[0.995, 0.5, 0.5], [1.005, 0.5, 0.5], [0.3, 0.3, 0.3]])
     rest = np.array([[0.0, 0, 0], [5.0, 0, 0], [9.0, 0, 0]])
-    x = NeighbourList(3)
-    assert _self_collide(pos, rest, t, lists=x) == 1
+    hits, x = _self_collide(pos, rest, t, lists=NeighbourList.allocate(3))
+    assert hits == 1
     assert not x.push.any() and not x.count.any()
     apart = pos.copy()
-    assert _self_collide(pos, rest, t, lists=x) == 0
+    assert _self_collide(pos, rest, t, lists=x)[0] == 0
     np.testing.assert_array_equal(pos, apart)
 
 
@@ -329,7 +372,7 @@ def test_self_collision_ignores_pairs_close_at_rest_and_pins():
     pos = np.array([[0.0, 0, 0], [0.01, 0, 0], [0.0, 0.005, 0.0]])
     rest = np.array([[0.0, 0, 0], [0.01, 0, 0], [9.0, 9.0, 9.0]])
     before = pos.copy()
-    assert _self_collide(pos, rest, 0.0095, pinned=np.array([True, False, False])) == 2
+    assert _self_collide(pos, rest, 0.0095, pinned=np.array([True, False, False]))[0] == 2
     np.testing.assert_array_equal(pos[0], before[0])
     assert pos[1, 0] > before[1, 0]  # pushed only by point 2, away from it
 
@@ -350,12 +393,13 @@ def test_self_collision_matches_brute_force_as_points_move(parts, skin):
     n, t = 400, 0.02
     pos = rng.uniform(0, 0.3, size=(n, 3))
     rest = rng.uniform(0, 3, size=(n, 3))
-    lists = NeighbourList(n, parts=parts, skin=skin)
-    lists.pairs = np.zeros((2, 8), dtype=np.int32)  # too small: the kernel must grow it
+    lists = NeighbourList.allocate(n, parts=parts, skin=skin)
+    lists = lists._replace(pairs=np.zeros((2, 8), dtype=np.int32))  # too small: the kernel must grow it
     for step in range(40):
         expected = brute_force_pairs(pos, rest, 2 * t)
         probe = pos.copy()
-        assert _self_collide(probe, rest, t, steps=10 ** 9, lists=lists) == expected, step
+        hits, lists = _self_collide(probe, rest, t, steps=10 ** 9, lists=lists)
+        assert hits == expected, step
         pos += rng.normal(scale=0.002, size=pos.shape)  # drift a little each call
         pos += [0.01, -0.02, 0.0]                       # and all together
         if step % 10 == 9:
@@ -367,7 +411,6 @@ def test_coarse_cloths_take_the_wider_skin():
     """a cloth whose wider list radius takes in only its rows, columns and diagonals
     gets the wider skin; finer cloths, whose stencil it would fill with rings
     of grid neighbours, keep the narrow one"""
-    from clothsim.solver.self_collide import COARSE_SKIN, SKIN_FACTOR, skin_factor
     for n, expected in [(30, COARSE_SKIN), (50, COARSE_SKIN), (70, SKIN_FACTOR), (100, SKIN_FACTOR)]:
         spec = ClothSpec(width=1.0, height=1.0, num_width_points=n, num_height_points=n,
                          thickness=0.0095, orientation=0, pinned=[])
@@ -388,15 +431,13 @@ def test_neighbour_list_holds_exactly_the_pairs_within_the_radius():
     rest[:20] = rest[0] + rng.uniform(0, 0.001, size=(20, 3))  # close at rest: never listed
     reach, radius = 0.02, 0.03
     n = len(pos)
-    x = NeighbourList(n)
-    x.pairs = np.zeros((2, n * n // 2), dtype=np.int32)
-    b = x.buffers()
-    found = build_list(planes(pos), rest, reach, radius, np.inf, *b[:5], x.pairs, x.meta[3],
-                       x.near_table, x.near_metric)
+    x = NeighbourList.allocate(n)
+    pairs = np.zeros((2, n * n // 2), dtype=np.int32)
+    found = build(planes(pos), rest, reach, radius, x, pairs)
     d = np.linalg.norm(pos[:, None] - pos[None], axis=2)
     r = np.linalg.norm(rest[:, None] - rest[None], axis=2)
     expected = {(a, b) for a, b in zip(*np.nonzero(np.triu((d < radius) & (r >= reach), 1)))}
-    listed = [tuple(sorted(p)) for p in x.pairs[:, :found].T.tolist()]
+    listed = [tuple(sorted(p)) for p in pairs[:, :found].T.tolist()]
     assert len(listed) == len(set(listed)) == found
     assert set(listed) >= expected
     # beyond those, only pairs within the single-precision rounding of the radius
@@ -429,7 +470,8 @@ def test_drift_test_bounds_every_pair():
     skin = 0.01
 
     def bound(P):  # no centres kept from before
-        return _drift_bound(*single(P, ref), skin, np.zeros((2, 3)), magnitudes(P, ref))
+        Q, reference = single(P, ref)
+        return drift_bound(Q, reference, skin, np.zeros((2, 3)), magnitudes(P, ref))
 
     def widest(P):  # the largest difference of two displacements, along each axis and overall
         d = P - ref
@@ -465,7 +507,8 @@ def test_drift_test_keeps_centres_while_they_hold():
     centres = np.zeros((2, 3))
 
     def drifted(P):
-        return np.isinf(_drift_bound(*single(P, ref), skin, centres, magnitudes(P, ref)))
+        Q, reference = single(P, ref)
+        return np.isinf(drift_bound(Q, reference, skin, centres, magnitudes(P, ref)))
 
     part = ref.copy()
     part[1, :2500] -= 0.6 * skin  # half falls: only the box middle holds
@@ -493,7 +536,7 @@ def test_self_collision_on_a_widely_spread_cloud_uses_coarser_cells():
     pos = (centres[:, None, :] + rng.uniform(0, 0.1, size=(8, 25, 3))).reshape(-1, 3)
     rest = rng.uniform(0, 30, size=pos.shape)
     t = 0.01
-    assert _self_collide(pos.copy(), rest, t, steps=10 ** 9) == brute_force_pairs(pos, rest, 2 * t) > 0
+    assert _self_collide(pos.copy(), rest, t, steps=10 ** 9)[0] == brute_force_pairs(pos, rest, 2 * t) > 0
 
 
 def test_bounds_on_the_bits_match_min_and_max():
@@ -505,29 +548,29 @@ def test_bounds_on_the_bits_match_min_and_max():
     P[1] = np.abs(P[1])          # all positive
     P[2] = -np.abs(P[2]) - 1.0   # all negative
     lo, hi = np.empty(3), np.empty(3)
-    assert _bounds(P, lo, hi)
+    assert bounds(P, lo, hi)
     np.testing.assert_array_equal(lo, P.min(axis=1))
     np.testing.assert_array_equal(hi, P.max(axis=1))
     for bad in (np.inf, -np.inf, np.nan):
         Q = P.copy()
         Q[1, 500] = bad
-        assert not _bounds(Q, lo, hi)
+        assert not bounds(Q, lo, hi)
 
 
 def test_self_collision_skips_a_blown_up_state():
     """non-finite positions or a spread beyond the span build no list and push nothing"""
     pos = np.array([[0.0, 0, 0], [0.001, 0, 0], [np.nan, 0, 0]])
     rest = np.array([[0.0, 0, 0], [5.0, 0, 0], [9.0, 0, 0]])
-    x = NeighbourList(3)
+    x = NeighbourList.allocate(3)
     P = planes(pos)
-    x.pairs, hits = self_collide(P, rest, np.ones(3), 0.01, 1, np.inf, *x.buffers())
+    x, hits = collide_in_place(P, rest, np.ones(3), 0.01, 1, x)
     assert hits == 0 and x.rebuilds == 0
     pos[2] = [1e6, 0, 0]
     P = planes(pos)
-    x.pairs, hits = self_collide(P, rest, np.ones(3), 0.01, 1, 1e3, *x.buffers())
+    x, hits = collide_in_place(P, rest, np.ones(3), 0.01, 1, x, span=1e3)
     assert hits == 0 and x.rebuilds == 0
     np.testing.assert_array_equal(P.T, pos)
-    x.pairs, hits = self_collide(P, rest, np.ones(3), 0.01, 1, 1e7, *x.buffers())
+    x, hits = collide_in_place(P, rest, np.ones(3), 0.01, 1, x, span=1e7)
     assert hits == 1 and x.rebuilds == 1
 
 
@@ -556,12 +599,16 @@ def test_few_and_many_pushes_move_points_alike(points, parts):
     free = (~pinned).astype(float)
     expected, hits = reference_self_collision(pos, rest, free, 0.04, 3)
     assert (hits <= SPARSE_PAIRS) == (points == 60) and hits > 5
-    x = NeighbourList(points, parts=parts)
+    x = NeighbourList.allocate(points, parts=parts)
     P = planes(pos)
-    x.pairs, found = self_collide(P, rest, free, 0.02, 3, np.inf, *x.buffers())
+    x, found = collide_in_place(P, rest, free, 0.02, 3, x)
     assert found == hits
     np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-13)
     assert not x.push.any() and not x.count.any()
+
+
+TALLY_PUSHED = 1
+"""the column of NeighbourList.tally that holds the pairs each part pushed"""
 
 
 @pytest.mark.parametrize("parts", [1, 2])
@@ -570,7 +617,6 @@ def test_touching_bucket_that_drifts_apart_pushes_only_the_pairs_still_touching(
     that no longer touch still pass through the pass: with exactly SPARSE_PAIRS
     of them touching, listed before the ones that drifted apart, the sparse
     apply must still move the ends of every touching pair, as brute force does"""
-    from clothsim.solver.self_collide import BUCKET
     each = SPARSE_PAIRS + 8  # pairs per part
     pairs = each * parts
     pos = np.zeros((2 * pairs, 3))
@@ -578,8 +624,8 @@ def test_touching_bucket_that_drifts_apart_pushes_only_the_pairs_still_touching(
     pos[1::2, 0] = np.arange(pairs) + 0.03
     rest = np.arange(2 * pairs)[:, None] * np.array([[1.0, 1.0, 1.0]])
     free = np.ones(2 * pairs)
-    x = NeighbourList(2 * pairs, parts=parts)
-    x.pairs, hits = self_collide(planes(pos), rest, free, 0.02, 3, np.inf, *x.buffers())
+    x = NeighbourList.allocate(2 * pairs, parts=parts)
+    x, hits = collide_in_place(planes(pos), rest, free, 0.02, 3, x)
     assert hits == pairs and x.meta[BUCKET] == pairs and x.rebuilds == 1
     moved = pos.copy()
     drifted = np.arange(pairs) % each >= SPARSE_PAIRS  # the last 8 of each part's pairs
@@ -587,9 +633,9 @@ def test_touching_bucket_that_drifts_apart_pushes_only_the_pairs_still_touching(
     expected, hits = reference_self_collision(moved, rest, free, 0.04, 3)
     assert hits == SPARSE_PAIRS * parts
     P = planes(moved)
-    x.pairs, found = self_collide(P, rest, free, 0.02, 3, np.inf, *x.buffers())
+    x, found = collide_in_place(P, rest, free, 0.02, 3, x)
     assert x.rebuilds == 1 and found == hits
-    assert np.all(x.tally[:parts, 1] == SPARSE_PAIRS)  # the sparse apply, at its limit
+    assert np.all(x.tally[:parts, TALLY_PUSHED] == SPARSE_PAIRS)  # the sparse apply, at its limit
     np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-13)
     assert not x.push.any() and not x.count.any()
 
@@ -599,14 +645,30 @@ def sorted_pairs(pairs):
     return pairs[:, np.lexsort(pairs[::-1])]
 
 
+class Near(NamedTuple):
+    """what near_stencil() returns, by name"""
+
+    offsets: np.ndarray
+    weight: np.ndarray
+    table: np.ndarray
+    metric: np.ndarray
+
+
+EXACT = 3
+"""the field of grid_metric()'s (row spacing², column spacing², rho², exact) that says whether it is exact"""
+
+
+def stencil_of(rest, n, thickness, skin=SKIN_FACTOR) -> Near:
+    return Near._make(near_stencil(rest, n, n, thickness, skin))
+
+
 def folded_cloth(n, ratio, squeeze):
     """(model, near stencil, positions) of an n x n cloth with thickness ratio/(n-1),
     squeezed, its far half folded back over the near half, jittered"""
-    from clothsim.solver.self_collide import near_stencil
     spec = ClothSpec(width=1.0, height=1.0, num_width_points=n, num_height_points=n,
                      thickness=ratio / (n - 1), orientation=0, pinned=[[0, 0]])
     m = build_model(spec)
-    near = near_stencil(m.rest_positions, n, n, m.thickness)
+    near = stencil_of(m.rest_positions, n, m.thickness)
     rng = np.random.default_rng(n)
     pos = m.rest_positions * [squeeze, 1, squeeze]
     half = m.rest_positions[:, 2] > 0.5
@@ -621,9 +683,8 @@ def test_grid_metric_ellipse_keeps_a_margin_for_single_precision(n, ratio):
     """the build tests the ellipse in single precision, so its edge must lie well
     between the offsets it holds and those it does not; where a marked offset
     and one not marked lie equally far, it must drop neither"""
-    from clothsim.solver.self_collide import NEAR, grid_metric
     m, near, _ = folded_cloth(n, ratio, 0.9)
-    wr2, wc2, rho2, exact = near[3]
+    wr2, wc2, rho2, exact = near.metric
     assert exact == 1.0
     dr, di = np.meshgrid(np.arange(NEAR + 2), np.arange(-NEAR - 1, NEAR + 2), indexing="ij")
     value = dr * dr * wr2 + di * di * wc2
@@ -631,9 +692,9 @@ def test_grid_metric_ellipse_keeps_a_margin_for_single_precision(n, ratio):
     assert np.any((value < rho2) & ((dr > 0) | (di > 0)))  # it does drop some
     never = np.zeros((NEAR + 1, 2 * NEAR + 1), bool)
     never[0, NEAR + 1] = True  # the next column, but not the next row as near: no gap between them
-    tie = grid_metric(m.rest_positions, n, n, never, 2 * m.thickness)
-    drops = dr * dr * tie[0] + di * di * tie[1] < tie[2]
-    assert tie[3] == 0.0 and not np.any(drops & ((dr > 0) | (di > 0)))
+    tie_wr2, tie_wc2, tie_rho2, tie_exact = grid_metric(m.rest_positions, n, n, never, 2 * m.thickness)
+    drops = dr * dr * tie_wr2 + di * di * tie_wc2 < tie_rho2
+    assert tie_exact == 0.0 and not np.any(drops & ((dr > 0) | (di > 0)))
 
 
 @pytest.mark.parametrize("warp", [False, True])
@@ -643,7 +704,6 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
     exactly as the exact tests alone make it; on a regular grid it also skips
     those tests, and on a rest layout with squeezed columns (pairs two columns
     apart closer than the reach at rest) it must not"""
-    from clothsim.solver.self_collide import grid_metric, near_stencil
     m, near, pos = folded_cloth(n, ratio, 0.9)
     rest = m.rest_positions.copy()
     reach = 2 * m.thickness
@@ -651,26 +711,24 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
         col = np.arange(m.num_points) % n
         squeezed = (col >= 10) & (col <= 20)  # pairs 6 columns apart: 0.9 reach at rest
         rest[squeezed, 0] = rest[col == 10, 0].repeat(11) + (col[squeezed] - 10) * 0.15 * reach
-        near = near_stencil(rest, n, n, m.thickness)
-    assert near[3][3] == (0.0 if warp else 1.0)
+        near = stencil_of(rest, n, m.thickness)
+    assert near.metric[EXACT] == (0.0 if warp else 1.0)
     lists = []
-    for metric in (near[3], np.zeros(4)):
-        x = NeighbourList(m.num_points, n, (*near[:3], metric))
-        x.pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
-        found = build_list(planes(pos), rest, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
-                           x.pairs, n, x.near_table, x.near_metric)
-        assert 0 < found <= x.pairs.shape[1]
-        lists.append(x.pairs[:, :found].copy())
+    for metric in (near.metric, np.zeros(4)):
+        x = NeighbourList.allocate(m.num_points, n, near._replace(metric=metric))
+        pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
+        found = build(planes(pos), rest, reach, 1.5 * reach, x, pairs)
+        assert 0 < found <= pairs.shape[1]
+        lists.append(pairs[:, :found].copy())
     np.testing.assert_array_equal(lists[0], lists[1])
     if warp:  # at rest, the same metric marked exact would have let rest-close pairs in
         counts = []
-        for metric in (near[3], near[3] + [0, 0, 0, 1]):
-            x = NeighbourList(m.num_points, n, (*near[:3], metric))
-            x.pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
-            counts.append(build_list(planes(rest), rest, reach, 1.5 * reach, np.inf, *x.buffers()[:5],
-                                     x.pairs, n, x.near_table, x.near_metric))
+        for metric in (near.metric, near.metric + [0, 0, 0, 1]):
+            x = NeighbourList.allocate(m.num_points, n, near._replace(metric=metric))
+            pairs = np.zeros((2, 40 * m.num_points), dtype=np.int32)
+            counts.append(build(planes(rest), rest, reach, 1.5 * reach, x, pairs))
         assert counts[1] > counts[0]
-    assert grid_metric(rest, n, n, np.zeros((6, 11), bool), reach)[3] == 0.0
+    assert grid_metric(rest, n, n, np.zeros((6, 11), bool), reach)[EXACT] == 0.0
 
 
 @pytest.mark.parametrize("parts", [1, 2])
@@ -679,15 +737,13 @@ def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
     pair was: the touching pairs first, then buckets of slack, each in the build's
     order, with their ends noted; every pair of the build stays, and later passes
     leave the order be"""
-    from clothsim.solver.self_collide import BUCKET, PAIRS, SKIN, SLACK_BUCKETS
     m, near, pos = folded_cloth(40, 0.75, 0.9)
     reach = 2 * m.thickness
-    x = NeighbourList(m.num_points, 40, near, parts, skin=0.75)
+    x = NeighbourList.allocate(m.num_points, 40, near, parts, skin=0.75)
     fresh = np.zeros((2, 40 * m.num_points), dtype=np.int32)
-    built = build_list(planes(pos), m.rest_positions, reach, 1.75 * reach, np.inf, *x.buffers()[:5],
-                       fresh, 40, x.near_table, x.near_metric)
+    built = build(planes(pos), m.rest_positions, reach, 1.75 * reach, x, fresh)
     free = np.ones(m.num_points)
-    x.pairs, _ = self_collide(planes(pos), m.rest_positions, free, m.thickness, 3, np.inf, *x.buffers())
+    x, _ = collide_in_place(planes(pos), m.rest_positions, free, m.thickness, 3, x)
     listed = int(x.meta[PAIRS])
     assert listed == built
     pairs = x.pairs[:, :listed].copy()
@@ -705,22 +761,22 @@ def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
     for j in range(SLACK_BUCKETS):  # in the build's order within a bucket
         assert np.all(np.diff(rank[bucket == j]) > 0)
     P = planes(pos)
-    self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf, *x.buffers())  # the list holds
+    x, _ = collide_in_place(P, m.rest_positions, free, m.thickness, 10 ** 9, x)  # the list holds
+    assert x.rebuilds == 1
     np.testing.assert_array_equal(x.pairs[:, :listed], pairs)
 
 
 def test_a_substep_checks_the_slack_buckets_its_drift_bound_reaches():
     """the checked front of the list ends with the last bucket whose least slack lies
     below what the bound can reach, and takes the whole list once that nears the skin"""
-    from clothsim.solver.self_collide import BUCKET, SLACK_BUCKETS, _checked
     meta = np.zeros(BUCKET + SLACK_BUCKETS, dtype=np.int64)
     meta[BUCKET:] = np.cumsum(np.arange(1, SLACK_BUCKETS + 1) * 10)
     ends = meta[BUCKET:]
-    assert _checked(meta, 0.0) == ends[1]  # touching, and less than one step past the reach
-    assert _checked(meta, 0.999) == ends[1]
-    assert _checked(meta, 1.001) == ends[2]
-    assert _checked(meta, 3.5) == ends[4]
-    assert _checked(meta, (SLACK_BUCKETS - 1) * 0.999) == ends[-1]
+    assert checked_pairs(meta, 0.0) == ends[1]  # touching, and less than one step past the reach
+    assert checked_pairs(meta, 0.999) == ends[1]
+    assert checked_pairs(meta, 1.001) == ends[2]
+    assert checked_pairs(meta, 3.5) == ends[4]
+    assert checked_pairs(meta, (SLACK_BUCKETS - 1) * 0.999) == ends[-1]
 
 
 @pytest.mark.parametrize("parts", [1, 3])
@@ -730,28 +786,25 @@ def test_near_stencil_skips_only_blocks_the_drift_bound_cannot_bring_within_reac
     pair started farther past the reach than the drift bound, still pushes every
     pair a brute-force pass pushes, call after call on one list; also with the
     blocks cut into parts"""
-    from clothsim.solver.self_collide import near_stencil
     n = 40
     m, _, pos = folded_cloth(n, 0.4655, 1.0)  # the standard scenes' thickness over spacing
     reach = 2 * m.thickness
-    near = near_stencil(m.rest_positions, n, n, m.thickness, 0.75)
-    np.testing.assert_array_equal(near[0], [1, n - 1, n, n + 1])  # rows, columns, diagonals
-    lists = NeighbourList(m.num_points, n, near, parts, skin=0.75)
+    near = stencil_of(m.rest_positions, n, m.thickness, 0.75)
+    np.testing.assert_array_equal(near.offsets, [1, n - 1, n, n + 1])  # rows, columns, diagonals
+    lists = NeighbourList.allocate(m.num_points, n, near, parts, skin=0.75)
     free = np.ones(m.num_points)
     rng = np.random.default_rng(5)
     touching = []
     for call in range(60):
         expected, pairs = reference_self_collision(pos, m.rest_positions, free, reach, 10 ** 9)
         P = planes(pos)
-        lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf,
-                                         *lists.buffers())
+        lists, hits = collide_in_place(P, m.rest_positions, free, m.thickness, 10 ** 9, lists)
         assert hits == pairs, call
         if call == 0:  # the build notes each block's closest pair, in levels of squared distance
-            from clothsim.solver.self_collide import BLOCK, NEAR_LEVELS
             span2 = (1.75 * reach) ** 2 - reach ** 2
-            for s, o in enumerate(near[0]):
+            for s, o in enumerate(near.offsets):
                 d2 = np.sum((pos[o:] - pos[:-o]) ** 2, axis=1)
-                d2[near[1][s][:len(d2)] == 0] = np.inf
+                d2[near.weight[s][:len(d2)] == 0] = np.inf
                 blocks = -(-len(d2) // BLOCK)
                 least = [d2[b * BLOCK:(b + 1) * BLOCK].min() for b in range(blocks)]
                 expected = np.minimum(np.trunc((np.array(least) - reach ** 2) * NEAR_LEVELS / span2),
@@ -771,15 +824,14 @@ def test_single_precision_stencil_misses_no_pair_a_hair_inside_the_reach(parts):
     """between builds the stencil tests its pairs in single precision, which rounds
     distances by about 1e-7 here: row neighbours set a hair inside the reach (by
     1e-8 of it) must all still be pushed, and those a hair outside must not"""
-    from clothsim.solver.self_collide import near_stencil
     n = 40
     m, _, pos = folded_cloth(n, 0.4655, 1.0)
     reach = 2 * m.thickness
-    near = near_stencil(m.rest_positions, n, n, m.thickness, 0.75)
-    lists = NeighbourList(m.num_points, n, near, parts, skin=0.75)
+    near = stencil_of(m.rest_positions, n, m.thickness, 0.75)
+    lists = NeighbourList.allocate(m.num_points, n, near, parts, skin=0.75)
     free = np.ones(m.num_points)
     P = planes(pos)
-    lists.pairs, _ = self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf, *lists.buffers())
+    lists, _ = collide_in_place(P, m.rest_positions, free, m.thickness, 10 ** 9, lists)
     rng = np.random.default_rng(7)
     moved = pos.copy()
     rows = rng.choice(np.arange(0, n * n, n), size=30, replace=False)  # one pair per grid row
@@ -788,7 +840,7 @@ def test_single_precision_stencil_misses_no_pair_a_hair_inside_the_reach(parts):
         moved[a + 1] = moved[a] + unit * reach * (1 + (-1e-8 if k % 2 else 1e-8))
     expected, pairs = reference_self_collision(moved, m.rest_positions, free, reach, 10 ** 9)
     P = planes(moved)
-    lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 10 ** 9, np.inf, *lists.buffers())
+    lists, hits = collide_in_place(P, m.rest_positions, free, m.thickness, 10 ** 9, lists)
     assert lists.rebuilds == 1  # the same list: the stencil ran in single precision
     assert hits == pairs
     np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-15)
@@ -801,22 +853,21 @@ def test_list_build_writes_the_same_pairs_directly_and_stops_at_its_capacity(spa
     exactly what the checked path lists, in the same order, and with too little
     room store the first pairs, count them all and write nothing past the end"""
     m, near, pos = folded_cloth(40, 0.75, 0.9)
-    assert near[3][3] == 1.0  # exact: the direct writes apply
+    assert near.metric[EXACT] == 1.0  # exact: the direct writes apply
     n, reach = 40, 2 * m.thickness
 
-    def build(metric, pairs):
-        x = NeighbourList(m.num_points, n, (*near[:3], metric))
-        return build_list(planes(pos), m.rest_positions, reach, 1.5 * reach, np.inf,
-                          *x.buffers()[:5], pairs, n, x.near_table, x.near_metric, sparse)
+    def build_with(metric, pairs):
+        x = NeighbourList.allocate(m.num_points, n, near._replace(metric=metric))
+        return build(planes(pos), m.rest_positions, reach, 1.5 * reach, x, pairs, sparse)
 
     checked = np.zeros((2, 40 * m.num_points), dtype=np.int32)
-    total = build(near[3] * [1, 1, 1, 0], checked)  # the same ellipse, not marked exact
+    total = build_with(near.metric * [1, 1, 1, 0], checked)  # the same ellipse, not marked exact
     direct = np.zeros_like(checked)
-    assert build(near[3], direct) == total > 100
+    assert build_with(near.metric, direct) == total > 100
     np.testing.assert_array_equal(direct[:, :total], checked[:, :total])
     for room in (total // 3, total - 1):
         store = np.full((2, room + 64), -7, dtype=np.int32)
-        assert build(near[3], store[:, :room]) == total
+        assert build_with(near.metric, store[:, :room]) == total
         np.testing.assert_array_equal(store[:, :room], checked[:, :room])
         assert np.all(store[:, room:] == -7)
 
@@ -830,13 +881,14 @@ def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze, p
     the work cut into parts, each with its share of the list, the stencil and the
     pushes"""
     m, near, pos = folded_cloth(n, ratio, squeeze)
-    assert len(near[0]) > 0
-    assert near[3][2] > 1.2 * max(near[3][0], near[3][1])  # the build drops row and column neighbours early
+    assert len(near.offsets) > 0
+    wr2, wc2, rho2, _ = near.metric
+    assert rho2 > 1.2 * max(wr2, wc2)  # the build drops row and column neighbours early
     free = (~m.pinned).astype(float)
     expected, pairs = reference_self_collision(pos, m.rest_positions, free, 2 * m.thickness, 3)
-    lists = NeighbourList(m.num_points, n, near, parts)
+    lists = NeighbourList.allocate(m.num_points, n, near, parts)
     P = planes(pos)
-    lists.pairs, hits = self_collide(P, m.rest_positions, free, m.thickness, 3, np.inf, *lists.buffers())
+    lists, hits = collide_in_place(P, m.rest_positions, free, m.thickness, 3, lists)
     assert hits == pairs > 100
     np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-12)
 
