@@ -87,6 +87,10 @@ def add_run_args(p: argparse.ArgumentParser, seconds: float) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--export-sequence", metavar="DIR", help="write one OBJ per frame into DIR")
     p.add_argument("--export-npz", metavar="OUT.npz", help="write the whole trajectory as NumPy arrays")
+    p.add_argument("--export-usd", metavar="OUT.usda|OUT.usdc|OUT.usd",
+                   help="write the run as a time-sampled USD stage (cloth mesh with points and normals "
+                        "at every frame, uvs, the colliders; metres, y up, played at the frame rate): "
+                        ".usda text, .usdc or .usd binary; for Blender, Houdini, Omniverse, usdview")
 
 
 def add_scene_args(p: argparse.ArgumentParser, seconds: float) -> None:
@@ -114,6 +118,7 @@ def load_simulation(args: argparse.Namespace) -> Simulation:
     from ..simulation import Simulation
     from ..solver.cloth_solver import build_compiled
 
+    check_exports(args)
     scene = load_scene(scene_path(args.scene), args.overrides)
     told = not build_compiled()
     if told:
@@ -126,6 +131,21 @@ def load_simulation(args: argparse.Namespace) -> Simulation:
     return sim
 
 
+def check_exports(args: argparse.Namespace) -> None:
+    """Fail before the scene is built (and the kernels compile) when a whole-run
+    export cannot be written: ``--export-usd``'s extension and folder, and
+    ``--export-npz``. :class:`~clothsim.recording.FrameRecorder` checks again."""
+    from ..outputs import check_writable
+
+    overwrite = getattr(args, "overwrite", False)
+    if getattr(args, "export_usd", None):
+        from ..export.usd import check_usd_path
+
+        check_usd_path(args.export_usd, overwrite)
+    if getattr(args, "export_npz", None):
+        check_writable(args.export_npz, overwrite)
+
+
 def say_compiling() -> None:
     """The one line that explains a silent first run: numba compiles the kernels."""
     print("clothsim: compiling the simulation kernels for this machine, once (10-60 s); "
@@ -133,10 +153,12 @@ def say_compiling() -> None:
 
 
 def make_recorder(args: argparse.Namespace, sim: Simulation):
-    """The per-frame exporter of ``--export-sequence`` / ``--export-npz`` (inactive without them)."""
+    """The per-frame exporter of ``--export-sequence`` / ``--export-npz`` / ``--export-usd``
+    (inactive without them)."""
     from ..recording import FrameRecorder
 
-    return FrameRecorder(sim, args.export_sequence, args.export_npz, args.overwrite)
+    return FrameRecorder(sim, args.export_sequence, args.export_npz, args.overwrite,
+                         outputs={"usd": getattr(args, "export_usd", None)})
 
 
 def progress_bar(total: int, unit: str, show: bool, **kwargs):
