@@ -1,13 +1,16 @@
-"""``clothsim render``: simulate, then draw the final frame, a contact sheet or the whole animation."""
+"""``clothsim render``: simulate, then draw the final frame, a contact sheet or the whole animation,
+or write a web page that plays it."""
 
 from __future__ import annotations
 
 import argparse
+import os
+import tempfile
 import time
 from pathlib import Path
 
 from ..errors import UsageError
-from ..outputs import check_writable
+from ..outputs import OutputError, check_writable, write_atomic
 from ..render.media import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 from .common import (add_scene_args, check_seconds, load_simulation, make_recorder, parse_floats, parse_size,
                      progress_bar, run_with_progress, summary)
@@ -16,14 +19,18 @@ from .common import (add_scene_args, check_seconds, load_simulation, make_record
 def add_parser(sub) -> None:
     p = sub.add_parser("render", help="simulate and render an image, a contact sheet or a video",
                        description="Simulate a scene headless and render the final frame (PNG), or the "
-                                   "animation (MP4/GIF), with a GLSL shader.")
+                                   "animation (MP4/GIF), with a GLSL shader; or write the animation as one "
+                                   "self-contained web page (HTML) to orbit, play and scrub in a browser.")
     add_scene_args(p, seconds=2.0)
     p.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="OUT.png for the last frame, OUT.mp4 or OUT.gif for the animation")
+                   help="OUT.png for the last frame, OUT.mp4 or OUT.gif for the animation, "
+                        "OUT.html for a web player of it (works offline, opened from disk)")
     p.add_argument("--shader", default="Phong", help="shader name, or 'all' for a contact sheet (default Phong)")
     p.add_argument("--shaders", action="append", default=[], metavar="DIR",
                    help="folder of Name.vert/Name.frag files searched before the built-in ones")
-    p.add_argument("--size", default="800x800", help="image size WIDTHxHEIGHT (default 800x800)")
+    p.add_argument("--size", default=None,
+                   help="image size WIDTHxHEIGHT (default 800x800; for .html the player's size in CSS "
+                        "pixels, default the browser window)")
     p.add_argument("--color", default=None, metavar="R,G,B", help="cloth colour, components in [0, 1]")
     p.add_argument("--normal-scaling", type=float, default=None, metavar="X")
     p.add_argument("--height-scaling", type=float, default=None, metavar="X")
@@ -70,10 +77,18 @@ def make_renderer(args: argparse.Namespace):
     from ..render.shaders import ShaderLibrary
 
     return Renderer(
-        size=parse_size(args.size), shaders=ShaderLibrary(args.shaders),
+        size=parse_size(args.size or DEFAULT_SIZE), shaders=ShaderLibrary(args.shaders),
         texture=assets.read_image(args.texture, "texture") if args.texture else None,
         height_map=assets.read_image(args.height_map, "height map") if args.height_map else None,
         cubemap=assets.read_cubemap(args.cubemap) if args.cubemap else None)
+
+
+DEFAULT_SIZE = "800x800"
+PLAYER_SUFFIXES = {".html", ".htm"}
+PLAYER_REFUSES = (("shader", "--shader", "Phong"), ("shaders", "--shaders", []), ("texture", "--texture", None),
+                  ("height_map", "--height-map", None), ("cubemap", "--cubemap", None),
+                  ("normal_scaling", "--normal-scaling", None), ("height_scaling", "--height-scaling", None))
+"""options of the GLSL renderer the web player has no use for: (dest, option, default)"""
 
 
 def validate(args: argparse.Namespace) -> str:
@@ -81,19 +96,38 @@ def validate(args: argparse.Namespace) -> str:
     from ..render.geometry import parse_resolution
 
     suffix = Path(args.output).suffix.lower()
-    if suffix not in VIDEO_SUFFIXES | IMAGE_SUFFIXES:
-        raise UsageError(f"{args.output}: expected an output ending in .png, .jpg, .mp4 or .gif")
+    if suffix not in VIDEO_SUFFIXES | IMAGE_SUFFIXES | PLAYER_SUFFIXES:
+        raise UsageError(f"{args.output}: expected an output ending in .png, .jpg, .mp4, .gif or .html")
+    if suffix in PLAYER_SUFFIXES:
+        for dest, option, default in PLAYER_REFUSES:
+            if getattr(args, dest) != default:
+                raise UsageError(f"{option}: not used by the web player (.html draws with its own Phong "
+                                 "shading; it takes --color, --phong, --light, --light-intensity, --camera "
+                                 "and --size)")
     if suffix in VIDEO_SUFFIXES and args.shader == "all":
         raise UsageError("--shader all makes a contact sheet image; use a .png output")
     check_seconds(args.seconds)
     if args.fps <= 0:
         raise UsageError(f"--fps: expected a number > 0, got {args.fps:g}")
-    parse_size(args.size)
+    parse_size(args.size or DEFAULT_SIZE)
     try:
         args.sphere_res_pair = parse_resolution(args.sphere_res)
     except ValueError as exc:
         raise UsageError(f"--sphere-res: {exc}") from None
     return suffix
+
+
+def check_can_create(path: str | Path) -> None:
+    """Fail before the run when no file can be made in ``path``'s folder (no
+    permission, a read-only disk, a folder that is a file): a temporary file is
+    made there and removed."""
+    folder = Path(path).parent
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".clothsim-probe-", dir=folder)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write in {folder} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(tmp)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -103,6 +137,9 @@ def run(args: argparse.Namespace) -> int:
 
     suffix = validate(args)
     check_writable(args.output, args.overwrite)
+    check_can_create(args.output)
+    if suffix in PLAYER_SUFFIXES:
+        return _write_player(args)
     settings = settings_from_args(args)
     sim = load_simulation(args)
     renderer = make_renderer(args)
@@ -135,6 +172,59 @@ def run(args: argparse.Namespace) -> int:
     image = images[0] if len(images) == 1 else contact_sheet(images, names)
     save_image(args.output, image)
     print(summary(sim, frames, wall) + f"; wrote {args.output}")
+    return 0
+
+
+def player_look(args: argparse.Namespace) -> dict:
+    """The keywords of :func:`clothsim.export.web.player_html` that the options ask for."""
+    from ..render.camera import Light
+
+    look: dict = {}
+    if args.color:
+        look["color"] = parse_floats(args.color, 3, "--color")
+        if not all(0.0 <= c <= 1.0 for c in look["color"]):
+            raise UsageError(f"--color: expected components in [0, 1], got {args.color!r}")
+    if args.size:
+        look["width"], look["height"] = parse_size(args.size)
+    if args.camera:
+        look["camera"] = parse_floats(args.camera, 3, "--camera")
+    if args.phong:
+        look["phong"] = parse_floats(args.phong, 4, "--phong")
+        if min(look["phong"]) < 0:
+            raise UsageError(f"--phong: expected numbers >= 0, got {args.phong!r}")
+    if args.light or args.light_intensity:
+        light = Light()
+        if args.light:
+            light.position = parse_floats(args.light, 3, "--light")
+        if args.light_intensity:
+            light.intensity = parse_floats(args.light_intensity, 3, "--light-intensity")
+        look["light"] = light
+    return look
+
+
+def _write_player(args: argparse.Namespace) -> int:
+    """Simulate, keeping every frame, then write the web player: no GL context."""
+    from ..export.web import write_player
+    from ..trajectory import TrajectoryRecorder
+
+    look = player_look(args)
+    sim = load_simulation(args)
+    recorder = make_recorder(args, sim)
+    frames = TrajectoryRecorder(sim)
+
+    def on_frame(s) -> None:
+        frames(s)
+        if recorder.active:
+            recorder(s)
+
+    count, wall = run_with_progress(sim, args.seconds, not args.no_progress, on_frame)
+    recorder.finish(sim)
+    start = time.perf_counter()
+    traj = frames.trajectory(sim)
+    write_atomic(args.output, lambda tmp: write_player(tmp, traj, **look))
+    took = time.perf_counter() - start
+    size = Path(args.output).stat().st_size
+    print(summary(sim, count, wall) + f"; wrote {args.output} ({size / 1e6:.1f} MB in {took:.2f} s)")
     return 0
 
 
