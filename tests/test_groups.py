@@ -45,20 +45,15 @@ LONG_SIGNATURES = {
     "_scan": 19,  # inlined into query_points: the point's and the build's values one by one
     "_inside": 17,  # inlined into _scan: the vector test's planes and scalars one by one
     "_put_checked": 15,  # inlined into _scan: the append's arrays and scalars one by one
-    "near_pushes": 17,  # the near stencil's buffers of the list one by one
-    "pair_pushes": 12,  # the pair pass's buffers of the list one by one
-    "verlet_gather": 12,  # the knobs' and the springs' fields one by one
     "query_points": 11,  # the cell grid and the build's scalars beside the list
 }
 """kernels that take more than MAX_PARAMETERS parameters today, and how many"""
 
-NAME_CLASHES = {("verlet_gather", "springs")}
-"""(kernel, parameter) that takes a group's name for something else: verlet_gather's
-flag ``springs``, whether any spring set pulls. Not taken for the group here"""
+NAME_CLASHES: set[tuple[str, str]] = set()
+"""(kernel, parameter) that takes a group's name for something else (none today)"""
 
-POSITIONAL_SITES = {"GridSprings", "Control"}
-"""groups built somewhere with fields in order: springs.build_stencil builds
-GridSprings from its nine fields in order, Control.of passes handle and handle_pos so"""
+POSITIONAL_SITES: set[str] = set()
+"""groups built somewhere with fields in order (none today)"""
 
 
 def solver_kernels() -> dict[str, object]:
@@ -281,6 +276,6 @@ def test_a_field_renamed_on_one_side_fails_the_checks():
     assert unknown_fields(edited["integrate"], FIELDS) == {"knobs": {"k_per_m"}}
     assert dead_fields(edited, "knobs", FIELDS["knobs"]) == {"k_over_m"}
     renamed = {**FIELDS, "knobs": tuple("damping_keep" if f == "keep" else f for f in Knobs._fields)}
-    assert unknown_fields(TREES["integrate"], renamed) == {"knobs": {"keep"}}
+    assert unknown_fields(TREES["verlet_gather"], renamed) == {"knobs": {"keep"}}
     assert dead_fields(TREES, "knobs", renamed["knobs"]) == {"damping_keep"}
     assert dead_fields(TREES, "knobs", FIELDS["knobs"]) == set()

@@ -70,7 +70,8 @@ class Control(NamedTuple):
     @classmethod
     def of(cls, handle: int, handle_pos, spheres, planes) -> Control:
         """The group from the held point and the scene's collider objects."""
-        return cls(int(handle), np.asarray(handle_pos, dtype=np.float64), **pack_colliders(spheres, planes))
+        return cls(handle=int(handle), handle_pos=np.asarray(handle_pos, dtype=np.float64),
+                   **pack_colliders(spheres, planes))
 
 
 class Scratch(NamedTuple):

@@ -114,11 +114,8 @@ def calls(variant: str) -> list:
     push, count, touched = lists.push, lists.count, lists.touched
     out += [(apply_pushes, (P, push, count, points.free, 1.0, zero, i64)),
             (apply_sparse, (P, push, count, points.free, 1.0, touched, lists.tally)),
-            (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, push[0], count[0], touched[0], zero,
-                           lists.pos32, f32)),
-            (near_pushes, (P, 0.02, lists.near_offset, lists.near_weight, push[0], count[0], touched[0],
-                           lists.near_masks[0], zero, np.int64(1), lists.near_level, True, 1.0, 1.0,
-                           lists.pos32, f32, False)),
+            (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, lists, zero, zero, f32)),
+            (near_pushes, (P, 0.02, lists, zero, np.int64(1), True, 1.0, 1.0, f32, False)),
             (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
             (_copy, (lists.pos32[:, :n], lists.reference)),
             (_close_up, (lists.pairs, lists.tally, zero)),

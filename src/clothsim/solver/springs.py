@@ -107,7 +107,8 @@ def build_stencil(rest_positions: np.ndarray, pinned: np.ndarray, rows: int, col
     for arr in (start, end, count, valid, rest, limit, batch, share):
         arr.setflags(write=False)
     ahead = int((end.max() + CHUNK - 1) // CHUNK * CHUNK)
-    return GridSprings(start, end, count, valid, rest, limit, batch, share, ahead)
+    return GridSprings(start=start, end=end, count=count, valid=valid, rest=rest, limit=limit, batch=batch,
+                       share=share, ahead=ahead)
 
 
 
@@ -141,27 +142,25 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     springs only look forward (both ends at ``p`` or later), so a point can
     be moved as soon as its chunk is gathered: no later chunk reads it.
     """
-    gravity, k_over_m, keep, dt2 = knobs.gravity, knobs.k_over_m, knobs.keep, knobs.dt2
-    start, end, count, valid, rest = springs.start, springs.end, springs.count, springs.valid, springs.rest
+    k_over_m = knobs.k_over_m
     on = has_springs(k_over_m)  # a variable, not a constant: one compile of verlet_gather
     if not on:
-        verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, max(first, moved), stop, on)
+        verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, on)
         return
     for lo in range(first, stop, CHUNK):
         hi = min(lo + CHUNK, stop)
-        spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi)
+        spring_forces(P, k_over_m, springs, F, lo, hi)
         if lo >= moved:
-            verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, on)
+            verlet_gather(P, L, free, knobs, springs, F, lo, hi, on)
 
 
 @njit(**KERNEL_OPTIONS)
 def gather_ahead(P, L, free, knobs, springs, F, lo, hi):
     """Move points ``lo:hi`` that :func:`integrate` of a part left (the first
     ``springs.ahead`` of the next part), from the forces every part wrote."""
-    springs_on = has_springs(knobs.k_over_m)
+    on = has_springs(knobs.k_over_m)
     for q in range(lo, hi, CHUNK):
-        verlet_gather(P, L, knobs.gravity, free, knobs.keep, knobs.dt2, springs.start, springs.end, F,
-                      q, min(q + CHUNK, hi), springs_on)
+        verlet_gather(P, L, free, knobs, springs, F, q, min(q + CHUNK, hi), on)
 
 
 @njit(cache=True, inline="always")
@@ -177,8 +176,9 @@ def has_springs(k_over_m):
 
 
 @njit(**KERNEL_OPTIONS)
-def spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi):
+def spring_forces(P, k_over_m, springs, F, lo, hi):
     """The forces of the springs that start at points ``lo:hi``, into ``F``; see :func:`integrate`."""
+    start, end, count, valid, rest = springs.start, springs.end, springs.count, springs.valid, springs.rest
     pad = F.shape[2] - P.shape[1]
     x, y, z = P[0], P[1], P[2]
     for s in range(6):
@@ -208,11 +208,13 @@ def spring_forces(P, k_over_m, start, end, count, valid, rest, F, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, springs):
+def verlet_gather(P, L, free, knobs, springs, F, lo, hi, with_springs):
     """Points ``lo:hi`` gather their spring forces from ``F`` and take their Verlet
-    step; without ``springs`` (see :func:`has_springs`) under gravity alone,
-    and ``F``, which then holds the last forces written, is not read (the
-    test is loop-invariant: LLVM keeps a loop for each case)."""
+    step; without ``with_springs`` (see :func:`has_springs`) under gravity
+    alone, and ``F``, which then holds the last forces written, is not read
+    (the test is loop-invariant: LLVM keeps a loop for each case)."""
+    gravity, keep, dt2 = knobs.gravity, knobs.keep, knobs.dt2
+    start, end = springs.start, springs.end
     pad = F.shape[2] - P.shape[1]
     fr = free[lo:]
     for c in range(3):
@@ -227,7 +229,7 @@ def verlet_gather(P, L, gravity, free, keep, dt2, start, end, F, lo, hi, springs
         f5a, f5b = F[5, c, b - start[5]:], F[5, c, b - end[5]:]
         for q in range(hi - lo):
             a = g
-            if springs:
+            if with_springs:
                 a += ((f0a[q] - f0b[q]) + (f1a[q] - f1b[q]) + (f2a[q] - f2b[q])
                       + (f3a[q] - f3b[q]) + (f4a[q] - f4b[q]) + (f5a[q] - f5b[q]))
             xq = xc[q]

@@ -56,8 +56,6 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     rest, free, thickness, span = points.rest, points.free, points.thickness, points.span
     reference, frame, centres = lists.reference, lists.frame, lists.centres
     push, count, meta, tally = lists.push, lists.count, lists.meta, lists.tally
-    near_offset, near_weight = lists.near_offset, lists.near_weight
-    near_masks, near_level = lists.near_masks, lists.near_level
     pos32, extent32, touched = lists.pos32, lists.extent32, lists.touched
     n = P.shape[1]
     parts = push.shape[0]
@@ -131,12 +129,11 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     wide2 = widened2(reach, extent)
     checked = touching if fresh else checked_pairs(meta, reachable * (SLACK_BUCKETS - 1))
     for t in prange(parts):
-        h = near_pushes(P, reach, near_offset, near_weight, push[t], count[t], touched[t],
-                        near_masks[t], t, parts, near_level, fresh, reachable * NEAR_LEVELS,
-                        NEAR_LEVELS / span2, pos32, wide2, not fresh)
+        h = near_pushes(P, reach, lists, t, parts, fresh, reachable * NEAR_LEVELS, NEAR_LEVELS / span2,
+                        wide2, not fresh)
         k0, k1 = part_range(checked, parts, t)
-        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, push[t],
-                                      count[t], touched[t], h, pos32, wide2)
+        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, lists, t, h,
+                                      wide2)
     hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]

@@ -179,8 +179,7 @@ stencil notes how far past the reach each block's closest pair was"""
 
 
 @njit(**KERNEL_OPTIONS)
-def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, parts, level, fresh, reachable,
-                scale, Q, wide2, single):
+def near_pushes(P, reach, lists, part, parts, fresh, reachable, scale, wide2, single):
     """Add the pushes of the near-stencil pairs closer than ``reach`` to ``push``
     and ``count``, noting their ends in ``touched`` (see :func:`push_pair`);
     returns how many pairs that was. Only part ``part`` of
@@ -208,6 +207,9 @@ def near_pushes(P, reach, offsets, weight, push, count, touched, masks, part, pa
     is pushed. The substep of a build, which notes the levels, checks in
     double precision.
     """
+    # the stencil and part ``part``'s scratch of the :class:`~.buffers.NeighbourList`
+    offsets, weight, level, Q = lists.near_offset, lists.near_weight, lists.near_level, lists.pos32
+    push, count, touched, masks = lists.push[part], lists.count[part], lists.touched[part], lists.near_masks[part]
     n = P.shape[1]
     reach2 = reach * reach
     top = np.float64(NEAR_LEVELS)

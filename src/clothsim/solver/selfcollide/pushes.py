@@ -11,7 +11,7 @@ from numba import njit
 from ..shared import EXACT_OPTIONS, KERNEL_OPTIONS, gap2
 
 @njit(**EXACT_OPTIONS)
-def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, wide2):
+def pair_pushes(P, reach, pairs, k0, sure, k1, lists, part, before, wide2):
     """Add the pushes of listed pairs ``k0:k1`` closer than ``reach`` to ``push`` (3, N)
     and ``count`` (N,), noting their ends in ``touched`` after those of the
     ``before`` pairs pushed already (see :func:`push_pair`); returns how many
@@ -26,6 +26,9 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, push, count, touched, before, Q, 
     precision, against ``wide2`` (see :func:`near_pushes`): half the memory
     to gather from.
     """
+    # part ``part``'s scratch of the :class:`~.buffers.NeighbourList`, and the
+    # positions in single precision
+    push, count, touched, Q = lists.push[part], lists.count[part], lists.touched[part], lists.pos32
     reach2 = reach * reach
     x, y, z = P[0], P[1], P[2]
     hits = 0
