@@ -33,9 +33,10 @@ address by showing that frame, paused; without it, it plays. For tests and
 notebooks it exposes ``window.clothsimPlayer``: ``ready`` (true once the
 frames are decoded and drawn), ``frames`` (their count), ``frame`` (the one
 shown), ``playing``, ``error`` (a message, or null), ``setFrame(k)``,
-``play()`` and ``pause()``; the same state is mirrored on the ``<html>``
-element as ``data-state`` ("loading", "ready" or "error: ...") and
-``data-frame``.
+``play()``, ``pause()`` and ``stepped`` (how many times playing moved to
+another frame); the same state is mirrored on the ``<html>`` element as
+``data-state`` ("loading", "ready" or "error: ..."), ``data-frame``,
+``data-playing`` and ``data-stepped``.
 """
 
 from __future__ import annotations
@@ -64,6 +65,8 @@ LEVELS = 65535
 """quantization steps per axis (16 bits)"""
 ESCAPE = 255
 """the byte that stands for a delta kept whole"""
+CHUNK = 1 << 17
+"""coordinates coded at a time"""
 
 
 # ---------------------------------------------------------------------------
@@ -87,23 +90,33 @@ def encode_positions(positions: np.ndarray) -> tuple[dict, list[str]]:
     step = np.where(span > 0, span / LEVELS, 0.0)
     scale = np.where(span > 0, LEVELS / np.where(span > 0, span, 1.0), 0.0)
     escapes = [0, 0, 0]
+    points = positions.shape[1]
+    chunk = max(1, CHUNK // max(points, 1))
 
     def axis_text(a: int) -> str:
-        x = np.multiply(positions[:, :, a], scale[a])
-        x += 0.5 - lo[a] * scale[a]
-        q = x.astype(np.uint16)  # rounded (x >= 0.5 here), within [0, 65535]
-        d = np.empty_like(q)
-        d[0] = q[0]
-        np.subtract(q[1:], q[:-1], out=d[1:])  # wraps modulo 2**16
-        z = (d << 1) ^ (0 - (d >> 15))  # zigzag of d as int16, in uint16 arithmetic
-        whole = z >= ESCAPE
-        small = z.astype(np.uint8)
-        small[whole] = ESCAPE
-        kept = d[whole].astype("<u2")
-        escapes[a] = int(kept.size)
+        # a few frames at a time: the scratch stays in cache, and no array of
+        # the whole run is made (its fresh pages cost more than the arithmetic)
         packer = zlib.compressobj(1, zlib.DEFLATED, 15, 9, zlib.Z_RLE)
-        packed = packer.compress(small) + packer.compress(kept) + packer.flush()
-        return base64.b64encode(packed).decode("ascii")
+        parts, kept = [], []
+        x = np.empty((chunk, points))
+        q = np.zeros((chunk + 1, points), np.uint16)  # q[0]: the frame before (none: 0)
+        for f0 in range(0, frames, chunk):
+            n = min(frames, f0 + chunk) - f0
+            np.multiply(positions[f0:f0 + n, :, a], scale[a], out=x[:n])
+            x[:n] += 0.5 - lo[a] * scale[a]
+            q[1:n + 1] = x[:n]  # truncated: rounded, as x >= 0.5; within [0, 65535]
+            d = q[1:n + 1] - q[:n]  # wraps modulo 2**16
+            z = (d << 1) ^ (0 - (d >> 15))  # zigzag of d as int16, in uint16 arithmetic
+            whole = z >= ESCAPE
+            small = z.astype(np.uint8)
+            small[whole] = ESCAPE
+            kept.append(d[whole])
+            parts.append(packer.compress(small))
+            q[0] = q[n]
+        whole_deltas = np.concatenate(kept).astype("<u2")
+        escapes[a] = int(whole_deltas.size)
+        parts += [packer.compress(whole_deltas), packer.flush()]
+        return base64.b64encode(b"".join(parts)).decode("ascii")
 
     with ThreadPoolExecutor(3) as pool:
         texts = list(pool.map(axis_text, range(3)))
@@ -318,7 +331,7 @@ const message = root.querySelector(".message");
 root.querySelector(".stats").textContent =
   N + " points \u00b7 " + F + " frames \u00b7 " + meta.duration.toFixed(2) + " s at " + meta.fps + " frames/s";
 
-let ready = false, playing = false, frame = 0, clock = 0, error = null;
+let ready = false, playing = false, frame = 0, clock = 0, error = null, stepped = 0;
 let gl = null, draw = null, positions = null, normals = null, dirty = true;
 
 const api = {
@@ -328,6 +341,7 @@ const api = {
   get frame() { return frame; },
   get playing() { return playing; },
   get error() { return error; },
+  get stepped() { return stepped; },
   setFrame: function (k) { setFrame(k, true); },
   play: function () { play(); },
   pause: function () { pause(); },
@@ -338,6 +352,7 @@ function mark() {
   document.documentElement.dataset.state = error ? "error: " + error : (ready ? "ready" : "loading");
   document.documentElement.dataset.frame = String(frame);
   document.documentElement.dataset.playing = String(playing);
+  document.documentElement.dataset.stepped = String(stepped);
 }
 
 function fail(text) {
@@ -540,7 +555,7 @@ function tick(now) {
     if (last !== null) clock += Math.min(0.1, (now - last) / 1000);
     if (clock > meta.duration + 0.5 / meta.fps) clock = 0;  // loop
     const k = frameAt(clock);
-    if (k !== frame) { frame = k; dirty = true; showTime(); }
+    if (k !== frame) { frame = k; stepped++; dirty = true; showTime(); }
   }
   last = now;
   if (dirty && draw) { draw(); dirty = false; }
