@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .export import write_obj
+from .export.obj import ObjSequence
 from .outputs import OutputError, atomic_path, check_writable
 from .simulation import Simulation
 from .trajectory import Trajectory, TrajectoryRecorder
@@ -68,20 +68,20 @@ class FrameRecorder:
             self.sequence_dir.mkdir(parents=True, exist_ok=True)
         self._frames = TrajectoryRecorder(sim) if self.outputs else None
         self.active = bool(self.sequence_dir or self.outputs)
+        self._sequence = None
         if self.sequence_dir:
-            self._write_frame(sim)
-
-    def _write_frame(self, sim: Simulation) -> None:
-        write_obj(self.sequence_dir / f"frame_{sim.frame:04d}.obj", sim.positions, sim.normals,
-                  sim.model.uvs, sim.model.triangles)
+            self._sequence = ObjSequence(self.sequence_dir, sim.model.uvs, sim.model.triangles)
+            self._sequence.write(sim.frame, sim.positions, sim.normals)
 
     def __call__(self, sim: Simulation) -> None:
-        if self.sequence_dir:
-            self._write_frame(sim)
+        if self._sequence is not None:
+            self._sequence.write(sim.frame, sim.positions, sim.normals)
         if self._frames is not None:
             self._frames(sim)
 
     def finish(self, sim: Simulation) -> None:
+        if self._sequence is not None:
+            self._sequence.close()  # the OBJ files are written in the background: wait for them
         if self._frames is None:
             return
         traj = self._frames.trajectory(sim)
