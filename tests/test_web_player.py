@@ -123,6 +123,20 @@ def test_look_and_sizes():
     assert web.read_player(web.player_html(single))["positions"].shape == (1, 20, 3)
 
 
+def test_iframe_holds_the_page():
+    """player_iframe: the same page in srcdoc, escaped, at the size asked"""
+    import html
+
+    traj = synthetic()
+    frame = web.player_iframe(traj, 600, 400, color=GREEN)
+    m = re.fullmatch(r'<iframe srcdoc="([^"]*)" width="600" height="400" style="border:0" title="([^"]*)"></iframe>',
+                     frame)
+    assert m and html.unescape(m.group(2)) == traj.name
+    page = html.unescape(m.group(1))
+    assert page == web.player_html(traj, color=GREEN)
+    assert web.read_player(page)["positions"].shape == traj.positions.shape
+
+
 @pytest.fixture(scope="module")
 def five_seconds():
     """sphere.json, 50x50, 5 s recorded frame by frame; the simulation's CPU time"""

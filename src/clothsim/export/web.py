@@ -261,6 +261,17 @@ def player_html(traj: Trajectory, color: Sequence[float] = DEFAULT_COLOR, width:
                  .replace("%JS%", _PLAYER_JS).replace("%DATA%", data))
 
 
+def player_iframe(traj: Trajectory, width: int = 720, height: int = 480, **look) -> str:
+    """The player as an ``<iframe>`` of ``width`` x ``height`` CSS pixels, for a page
+    of someone else's (a notebook's output): the player's page, which styles its
+    whole window, stays in a document of its own (``srcdoc``). Keywords as
+    :func:`player_html`."""
+    page = player_html(traj, **look)
+    return (f'<iframe srcdoc="{html.escape(page, quote=True)}" width="{int(width)}" height="{int(height)}" '
+            f'style="border:0" title="{html.escape(traj.name if look.get("title") is None else look["title"])}">'
+            '</iframe>')
+
+
 def write_player(path: str | Path, traj: Trajectory, **look) -> None:
     """Write :func:`player_html` of ``traj`` to ``path`` (keywords as there)."""
     Path(path).write_text(player_html(traj, **look), encoding="utf-8")
@@ -332,7 +343,7 @@ root.querySelector(".stats").textContent =
   N + " points \u00b7 " + F + " frames \u00b7 " + meta.duration.toFixed(2) + " s at " + meta.fps + " frames/s";
 
 let ready = false, playing = false, frame = 0, clock = 0, error = null, stepped = 0;
-let gl = null, draw = null, positions = null, normals = null, dirty = true;
+let gl = null, draw = null, dirty = true;
 
 const api = {
   get ready() { return ready; },
@@ -377,12 +388,14 @@ async function inflate(bytes) {
   return new Uint8Array(await new Response(stream).arrayBuffer());
 }
 
+// The frames stay quantized (2 bytes a coordinate); framePositions makes one
+// frame's floats when it is shown.
 async function decode() {
-  const pos = new Float32Array(F * N * 3), count = F * N;
+  const quant = new Uint16Array(F * N * 3), count = F * N;
   for (let a = 0; a < 3; a++) {
     const b = await inflate(base64Bytes("clothsim-pos-" + a));
     if (b.length !== count + 2 * meta.escapes[a]) throw new Error("frame data of axis " + a + " has the wrong length");
-    const lo = meta.lo[a], step = meta.step[a], acc = new Uint16Array(N);
+    const acc = new Uint16Array(N);
     let e = count;  // the next escape: a delta kept whole, little-endian
     for (let f = 0; f < F; f++) {
       const base = f * N;
@@ -392,28 +405,39 @@ async function decode() {
         if (z === 255) { d = b[e] | (b[e + 1] << 8); e += 2; }
         else d = (z >>> 1) ^ -(z & 1);  // zigzag back to a signed delta
         acc[p] += d;  // a Uint16Array wraps modulo 2**16, as the deltas do
-        pos[3 * i + a] = lo + acc[p] * step;
+        quant[3 * i + a] = acc[p];
       }
     }
   }
   const tb = await inflate(base64Bytes("clothsim-tris"));
   const tris = new Uint32Array(tb.buffer, tb.byteOffset, tb.length / 4);
-  return {pos: pos, tris: tris};
+  return {quant: quant, tris: tris};
 }
 
-// Area-weighted vertex normals of frame f (as clothsim's mesh.vertex_normals).
-function frameNormals(pos, tris, f, out) {
+function framePositions(quant, f, out) {
+  const o = 3 * N * f, lo = meta.lo, step = meta.step;
+  for (let i = 0; i < 3 * N; i += 3) {
+    out[i] = lo[0] + quant[o + i] * step[0];
+    out[i + 1] = lo[1] + quant[o + i + 1] * step[1];
+    out[i + 2] = lo[2] + quant[o + i + 2] * step[2];
+  }
+  return out;
+}
+
+// Area-weighted vertex normals of one frame's positions (as clothsim's mesh.vertex_normals).
+function frameNormals(pos, tris, out) {
   out.fill(0);
-  const o = 3 * N * f;
   for (let t = 0; t < tris.length; t += 3) {
     const a = 3 * tris[t], b = 3 * tris[t + 1], c = 3 * tris[t + 2];
-    const e1x = pos[o + b] - pos[o + a], e1y = pos[o + b + 1] - pos[o + a + 1], e1z = pos[o + b + 2] - pos[o + a + 2];
-    const e2x = pos[o + c] - pos[o + a], e2y = pos[o + c + 1] - pos[o + a + 1], e2z = pos[o + c + 2] - pos[o + a + 2];
+    const e1x = pos[b] - pos[a], e1y = pos[b + 1] - pos[a + 1], e1z = pos[b + 2] - pos[a + 2];
+    const e2x = pos[c] - pos[a], e2y = pos[c + 1] - pos[a + 1], e2z = pos[c + 2] - pos[a + 2];
     const nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
-    for (const v of [a, b, c]) { out[v] += nx; out[v + 1] += ny; out[v + 2] += nz; }
+    out[a] += nx; out[a + 1] += ny; out[a + 2] += nz;
+    out[b] += nx; out[b + 1] += ny; out[b + 2] += nz;
+    out[c] += nx; out[c + 1] += ny; out[c + 2] += nz;
   }
   for (let v = 0; v < out.length; v += 3) {
-    const l = Math.hypot(out[v], out[v + 1], out[v + 2]);
+    const l = Math.sqrt(out[v] * out[v] + out[v + 1] * out[v + 1] + out[v + 2] * out[v + 2]);
     if (l > 0) { out[v] /= l; out[v + 1] /= l; out[v + 2] /= l; }
   }
   return out;
@@ -667,10 +691,8 @@ function setUp(data) {
   ["u_mvp", "u_front", "u_back", "u_cam", "u_light_pos", "u_light_int", "u_k"].forEach(function (name) {
     u[name] = gl.getUniformLocation(program, name);
   });
-  positions = data.pos;
-  normals = new Float32Array(3 * N);
-  const cloth = mesh(program, positions.subarray(0, 3 * N), frameNormals(positions, data.tris, 0, normals),
-                     data.tris, true);
+  const positions = framePositions(data.quant, 0, new Float32Array(3 * N)), normals = new Float32Array(3 * N);
+  const cloth = mesh(program, positions, frameNormals(positions, data.tris, normals), data.tris, true);
   const colliders = meta.spheres.map(function (s) { return sphereMesh(program, s.origin, s.radius); })
     .concat(meta.planes.map(function (p) { return planeMesh(program, p); }));
   const look = meta.look, bg = look.background;
@@ -682,9 +704,9 @@ function setUp(data) {
     if (canvas.width !== w || canvas.height !== h) { canvas.width = w; canvas.height = h; }
     if (shown !== frame) {
       gl.bindBuffer(gl.ARRAY_BUFFER, cloth.pos);
-      gl.bufferSubData(gl.ARRAY_BUFFER, 0, positions.subarray(3 * N * frame, 3 * N * (frame + 1)));
+      gl.bufferSubData(gl.ARRAY_BUFFER, 0, framePositions(data.quant, frame, positions));
       gl.bindBuffer(gl.ARRAY_BUFFER, cloth.nrm);
-      gl.bufferSubData(gl.ARRAY_BUFFER, 0, frameNormals(positions, data.tris, frame, normals));
+      gl.bufferSubData(gl.ARRAY_BUFFER, 0, frameNormals(positions, data.tris, normals));
       shown = frame;
     }
     gl.viewport(0, 0, w, h);
