@@ -10,7 +10,7 @@ except PackageNotFoundError:  # running from a source tree
 from .errors import ClothsimError, RenderError, SceneError, SimulationError
 from .scene import Scene, load_scene, parse_scene
 
-_LAZY = {"Params": "simulation", "Simulation": "simulation"}
+_LAZY = {"Params": "simulation", "Simulation": "simulation", "Trajectory": "trajectory", "record": "trajectory"}
 """names imported on first use: the simulation pulls in numba and the kernels,
 which ``clothsim --help`` and ``--version`` must not wait for"""
 
@@ -26,4 +26,4 @@ def __getattr__(name: str):
 
 
 __all__ = ["ClothsimError", "RenderError", "Params", "Scene", "SceneError", "Simulation",
-           "SimulationError", "load_scene", "parse_scene", "__version__"]
+           "SimulationError", "Trajectory", "load_scene", "parse_scene", "record", "__version__"]

@@ -156,3 +156,29 @@ class Simulation:
 
     def export_obj(self, path: str | Path) -> None:
         write_obj(path, self.positions, self.normals, self.model.uvs, self.model.triangles)
+
+    # ------------------------------------------------------------------ notebooks
+
+    @property
+    def recording(self):
+        """the :class:`~clothsim.trajectory.Trajectory` of the last
+        :func:`clothsim.record` call on this simulation, or None: the frames a
+        notebook shows for it. Nothing else is kept: stepping records nothing."""
+        return self.__dict__.get("_recording")
+
+    def show(self, width: int = 640, height: int = 400, **look):
+        """The web player of the frames recorded so far, for a notebook: those of
+        the last :func:`clothsim.record` call (``recording``), or the current frame
+        alone when there is none. A :class:`~clothsim.trajectory.Player` (``look``:
+        color, camera, phong, light, title)."""
+        from .trajectory import Player, _trajectory
+
+        traj = self.recording
+        if traj is None:
+            traj = _trajectory(self, self.positions[None].copy(), np.array([self.time]),
+                               self.params.frames_per_sec)
+        return Player(traj, width, height, **look)
+
+    def _repr_html_(self) -> str:
+        """Jupyter shows a simulation as :meth:`show`'s player."""
+        return self.show()._repr_html_()
