@@ -123,20 +123,6 @@ def test_look_and_sizes():
     assert web.read_player(web.player_html(single))["positions"].shape == (1, 20, 3)
 
 
-def test_iframe_holds_the_page():
-    """player_iframe: the same page in srcdoc, escaped, at the size asked"""
-    import html
-
-    traj = synthetic()
-    frame = web.player_iframe(traj, 600, 400, color=GREEN)
-    m = re.fullmatch(r'<iframe srcdoc="([^"]*)" width="600" height="400" style="border:0" title="([^"]*)"></iframe>',
-                     frame)
-    assert m and html.unescape(m.group(2)) == traj.name
-    page = html.unescape(m.group(1))
-    assert page == web.player_html(traj, color=GREEN)
-    assert web.read_player(page)["positions"].shape == traj.positions.shape
-
-
 @pytest.fixture(scope="module")
 def five_seconds():
     """sphere.json, 50x50, 5 s recorded frame by frame; the simulation's CPU time"""
@@ -183,6 +169,20 @@ def test_cli_writes_player(tmp_path, capsys):
     assert got["positions"].shape == (19, 2500, 3) and got["meta"]["name"] == "pinned2"
     assert got["meta"]["look"]["color"] == list(GREEN) and "ks=" in got["meta"]["description"]
     assert not list(tmp_path.glob(".*"))  # no temporary file left
+
+
+def test_frame_recorder_writes_player(tmp_path):
+    """FrameRecorder(outputs={"html": path}) writes the same page from the frames it collected"""
+    from clothsim.recording import FrameRecorder
+
+    sim = Simulation.from_file(SCENES / "pinned2.json")
+    out = tmp_path / "r.html"
+    recorder = FrameRecorder(sim, outputs={"html": str(out)})
+    sim.run(0.1, on_frame=recorder)
+    recorder.finish(sim)
+    got = web.read_player(out.read_text())
+    assert got["positions"].shape == (10, 2500, 3) and got["meta"]["look"]["color"] == list(web.DEFAULT_COLOR)
+    assert np.abs(got["positions"][-1] - sim.positions).max() <= max(got["meta"]["step"]) / 2 + 1e-12
 
 
 def _not_run(*args, **kwargs):

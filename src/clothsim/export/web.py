@@ -49,12 +49,15 @@ import zlib
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..render.camera import FOV_Y_DEG, NEAR, Light, OrbitCamera, framing
 from ..render.renderer import BACKGROUND, COLLIDER_COLOR, DrawSettings
-from ..trajectory import Trajectory
+
+if TYPE_CHECKING:  # the Trajectory's notebook display imports this module
+    from ..trajectory import Trajectory
 
 FORMAT = "clothsim-player/1"
 DEFAULT_COLOR: tuple[float, float, float] = DrawSettings.color
@@ -259,17 +262,6 @@ def player_html(traj: Trajectory, color: Sequence[float] = DEFAULT_COLOR, width:
                  .replace("%NAME%", html.escape(name)).replace("%DESCRIPTION%", html.escape(traj.description))
                  .replace("%META%", meta_json).replace("%TRIS%", tris_text)
                  .replace("%JS%", _PLAYER_JS).replace("%DATA%", data))
-
-
-def player_iframe(traj: Trajectory, width: int = 720, height: int = 480, **look) -> str:
-    """The player as an ``<iframe>`` of ``width`` x ``height`` CSS pixels, for a page
-    of someone else's (a notebook's output): the player's page, which styles its
-    whole window, stays in a document of its own (``srcdoc``). Keywords as
-    :func:`player_html`."""
-    page = player_html(traj, **look)
-    return (f'<iframe srcdoc="{html.escape(page, quote=True)}" width="{int(width)}" height="{int(height)}" '
-            f'style="border:0" title="{html.escape(traj.name if look.get("title") is None else look["title"])}">'
-            '</iframe>')
 
 
 def write_player(path: str | Path, traj: Trajectory, **look) -> None:
