@@ -141,6 +141,18 @@ def test_colliders_as_prims(written):
     assert plane.GetPrim().GetAttribute("clothsim:friction").Get() == pytest.approx(0.5)
 
 
+def test_passes_usd_validators(written):
+    """no error from any validator this usd-core ships (stage metadata, geometry, ...)"""
+    validation = pytest.importorskip("pxr.UsdValidation")
+    from pxr import UsdPhysics, UsdShade, UsdSkel  # noqa: F401  (registers their validators)
+
+    out, sim, positions = written
+    validators = validation.ValidationRegistry().GetOrLoadAllValidators()
+    assert validators
+    errors = validation.ValidationContext(validators).Validate(Usd.Stage.Open(str(out)))
+    assert [e.GetMessage() for e in errors] == []
+
+
 def test_usd_extension_is_binary_crate(tmp_path, capsys):
     """.usd is written as crate, .usdc too, .usda as text"""
     for ext in (".usd", ".usdc", ".usda"):
