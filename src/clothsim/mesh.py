@@ -9,7 +9,7 @@ from . import kernel_cache
 kernel_cache.configure()  # before the decorator: see kernel_cache
 
 
-@njit(cache=True, fastmath=True, boundscheck=False)
+@njit(cache=True, fastmath=True, boundscheck=False, nogil=True)
 def vertex_normals(pos, triangles, out):
     """Area-weighted average of adjacent face normals, unit length, into ``out`` (N, 3).
 

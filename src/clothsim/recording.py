@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import io
 import json
+import queue
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +39,38 @@ def _write_player(path: Path, traj: Trajectory) -> None:
 WRITERS = {"npz": _write_npz, "usd": _write_usd, "html": _write_player}
 """the whole-run formats: each writer takes the (temporary) path to write and the trajectory"""
 
+class _StageFeed:
+    """A USD stage built in a thread while the run goes on: each frame's
+    positions go in as they come (the substeps release the GIL), so that only
+    the file itself is left to write when the run ends."""
+
+    def __init__(self, start: Trajectory) -> None:
+        self._queue: queue.Queue = queue.Queue()
+        self._stage = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._work, args=(start,), daemon=True)
+        self._thread.start()
+
+    def _work(self, start: Trajectory) -> None:
+        try:
+            from .export.usd import StageBuilder
+
+            self._stage = StageBuilder(start)
+            while (positions := self._queue.get()) is not None:
+                self._stage.add(positions)
+        except BaseException as exc:  # raised again in the caller's thread by finish()
+            self._error = exc
+
+    def add(self, positions: np.ndarray) -> None:
+        self._queue.put(positions)
+
+    def finish(self, path: Path, traj: Trajectory) -> None:
+        self._queue.put(None)
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        self._stage.finish(path, traj)
+
 
 class FrameRecorder:
     """Called after every frame; writes or collects what was asked for.
@@ -67,17 +101,22 @@ class FrameRecorder:
                                   "pass --overwrite to replace them")
             self.sequence_dir.mkdir(parents=True, exist_ok=True)
         self._frames = TrajectoryRecorder(sim) if self.outputs else None
+        self._stage = _StageFeed(self._frames.trajectory(sim)) if "usd" in self.outputs else None
+        if self._stage is not None:
+            self._stage.add(self._frames.last)
         self.active = bool(self.sequence_dir or self.outputs)
         self._sequence = None
         if self.sequence_dir:
             self._sequence = ObjSequence(self.sequence_dir, sim.model.uvs, sim.model.triangles)
-            self._sequence.write(sim.frame, sim.positions, sim.normals)
+            self._sequence.write(sim.frame, sim.positions)  # normals: computed by its thread
 
     def __call__(self, sim: Simulation) -> None:
         if self._sequence is not None:
-            self._sequence.write(sim.frame, sim.positions, sim.normals)
+            self._sequence.write(sim.frame, sim.positions)
         if self._frames is not None:
             self._frames(sim)
+        if self._stage is not None:
+            self._stage.add(self._frames.last)
 
     def finish(self, sim: Simulation) -> None:
         if self._sequence is not None:
@@ -87,4 +126,7 @@ class FrameRecorder:
         traj = self._frames.trajectory(sim)
         for kind, path in self.outputs.items():
             with atomic_path(path) as tmp:
-                WRITERS[kind](tmp, traj)
+                if kind == "usd":
+                    self._stage.finish(tmp, traj)
+                else:
+                    WRITERS[kind](tmp, traj)

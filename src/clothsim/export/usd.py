@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..mesh import compute_normals
 from ..outputs import OutputError, check_writable
 
 if TYPE_CHECKING:
@@ -98,61 +99,80 @@ def write_usd(path: str | Path, traj: Trajectory) -> None:
     Writes exactly ``path``, in the format of its extension; callers that want
     no partial file write a temporary path and move it (as ``FrameRecorder`` does).
     """
-    from pxr import Sdf, Usd, UsdGeom, Vt
-
-    path = Path(path)
-    fmt = usd_format(path)
-    layer = Sdf.Layer.CreateAnonymous(f"clothsim.{fmt}")
-    stage = Usd.Stage.Open(layer)
-    frames = traj.num_frames
-    fps = float(traj.frames_per_sec)
-    stage.SetStartTimeCode(0.0)
-    stage.SetEndTimeCode(float(max(frames - 1, 0)))
-    stage.SetTimeCodesPerSecond(fps)
-    stage.SetFramesPerSecond(fps)
-    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    layer.documentation = (f"clothsim run of scene {traj.name!r}: {frames} frames at {fps:g} frames/s"
-                           + (f"; {traj.description}" if traj.description else ""))
-    layer.customLayerData = {"clothsim:scene": traj.name, "clothsim:description": traj.description,
-                             "clothsim:sceneJson": json.dumps(traj.scene, sort_keys=True),
-                             "clothsim:framesPerSecond": fps, "clothsim:frames": frames}
-
-    world = UsdGeom.Xform.Define(stage, "/World")
-    stage.SetDefaultPrim(world.GetPrim())
-    _define_cloth(stage, traj, Sdf, UsdGeom, Vt)
-    _define_colliders(stage, traj, Sdf, UsdGeom, Vt)
-    args = {"format": fmt} if path.suffix.lower() == ".usd" else {}
-    if not layer.Export(str(path), args=args):
-        raise OutputError(f"{path}: USD could not write the file")
+    stage = StageBuilder(traj)
+    for k in range(traj.num_frames):
+        stage.add(traj.positions[k])
+    stage.finish(path, traj)
 
 
-def _define_cloth(stage, traj: Trajectory, Sdf, UsdGeom, Vt) -> None:
-    from pxr import Usd
+class StageBuilder:
+    """A stage built frame by frame, so that a run's frames can go in while it runs
+    (``FrameRecorder`` feeds one from a thread beside the substeps, which release
+    the GIL): the cloth's topology and uvs from ``start``, a trajectory of the
+    run's first frame; its points, normals and extent at each :meth:`add`; the
+    frame range, the colliders and the file at :meth:`finish`."""
 
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Cloth")
-    tris = np.ascontiguousarray(traj.triangles, dtype=np.int32)
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(tris), 3, dtype=np.int32)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(tris.ravel()))
-    mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
-    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # a polygon cloth, its normals as given
-    mesh.CreateDoubleSidedAttr(True)  # both sides are seen, as the renderer draws them
-    mesh.CreateDisplayColorAttr(Vt.Vec3fArray([CLOTH_COLOR]))
-    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                                 UsdGeom.Tokens.vertex)
-    st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(traj.uvs, dtype=np.float32)))
-    mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    def __init__(self, start: Trajectory) -> None:
+        from pxr import Sdf, Usd, UsdGeom, Vt
 
-    # one bulk copy per frame and attribute (FromNumpy), the extent in C++; no per-point Python
-    positions = np.ascontiguousarray(traj.positions, dtype=np.float32)
-    points, normals, extent = mesh.CreatePointsAttr(), mesh.CreateNormalsAttr(), mesh.CreateExtentAttr()
-    with Sdf.ChangeBlock():  # setting values (not defining prims) is safe inside one
-        for k in range(traj.num_frames):
-            t = Usd.TimeCode(float(k))
-            frame = Vt.Vec3fArray.FromNumpy(positions[k])
-            points.Set(frame, t)
-            normals.Set(Vt.Vec3fArray.FromNumpy(traj.normals(k).astype(np.float32)), t)
-            extent.Set(UsdGeom.PointBased.ComputeExtent(frame), t)
+        self._pxr = Sdf, Usd, UsdGeom, Vt
+        self.triangles = start.triangles
+        self.layer = Sdf.Layer.CreateAnonymous("clothsim.usdc")
+        self.stage = Usd.Stage.Open(self.layer)
+        world = UsdGeom.Xform.Define(self.stage, "/World")
+        self.stage.SetDefaultPrim(world.GetPrim())
+        mesh = UsdGeom.Mesh.Define(self.stage, "/World/Cloth")
+        tris = np.ascontiguousarray(start.triangles, dtype=np.int32)
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(tris), 3, dtype=np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(tris.ravel()))
+        mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # a polygon cloth, its normals as given
+        mesh.CreateDoubleSidedAttr(True)  # both sides are seen, as the renderer draws them
+        mesh.CreateDisplayColorAttr(Vt.Vec3fArray([CLOTH_COLOR]))
+        st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                     UsdGeom.Tokens.vertex)
+        st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(start.uvs, dtype=np.float32)))
+        mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+        self.points, self.normals = mesh.CreatePointsAttr(), mesh.CreateNormalsAttr()
+        self.extent = mesh.CreateExtentAttr()
+        self.frames = 0
+
+    def add(self, positions: np.ndarray) -> None:
+        """The next frame's point positions [m], (N, 3): one bulk copy per
+        attribute (FromNumpy), the extent in C++; no per-point Python."""
+        Sdf, Usd, UsdGeom, Vt = self._pxr
+        t = Usd.TimeCode(float(self.frames))
+        frame = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(positions, dtype=np.float32))
+        normals = compute_normals(np.ascontiguousarray(positions, dtype=np.float64), self.triangles)
+        with Sdf.ChangeBlock():  # setting values (not defining prims) is safe inside one
+            self.points.Set(frame, t)
+            self.normals.Set(Vt.Vec3fArray.FromNumpy(normals.astype(np.float32)), t)
+            self.extent.Set(UsdGeom.PointBased.ComputeExtent(frame), t)
+        self.frames += 1
+
+    def finish(self, path: str | Path, traj: Trajectory) -> None:
+        """Write the stage to ``path`` in its extension's format; ``traj`` is the
+        whole run (its colliders and their reach, its name and parameters)."""
+        Sdf, Usd, UsdGeom, Vt = self._pxr
+        path = Path(path)
+        fmt = usd_format(path)
+        stage, layer, frames = self.stage, self.layer, self.frames
+        fps = float(traj.frames_per_sec)
+        stage.SetStartTimeCode(0.0)
+        stage.SetEndTimeCode(float(max(frames - 1, 0)))
+        stage.SetTimeCodesPerSecond(fps)
+        stage.SetFramesPerSecond(fps)
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+        layer.documentation = (f"clothsim run of scene {traj.name!r}: {frames} frames at {fps:g} frames/s"
+                               + (f"; {traj.description}" if traj.description else ""))
+        layer.customLayerData = {"clothsim:scene": traj.name, "clothsim:description": traj.description,
+                                 "clothsim:sceneJson": json.dumps(traj.scene, sort_keys=True),
+                                 "clothsim:framesPerSecond": fps, "clothsim:frames": frames}
+        _define_colliders(stage, traj, Sdf, UsdGeom, Vt)
+        args = {"format": fmt} if path.suffix.lower() == ".usd" else {}
+        if not layer.Export(str(path), args=args):
+            raise OutputError(f"{path}: USD could not write the file")
 
 
 def _define_colliders(stage, traj: Trajectory, Sdf, UsdGeom, Vt) -> None:
@@ -204,4 +224,4 @@ def _collider_extras(gprim, friction: float, Sdf, Vt) -> None:
         float(friction))
 
 
-__all__ = ["USD_FORMATS", "check_usd_path", "usd_format", "write_usd"]
+__all__ = ["USD_FORMATS", "StageBuilder", "check_usd_path", "usd_format", "write_usd"]

@@ -136,7 +136,9 @@ def _renamed(f, name: str):
     return g
 
 
-ADVANCE_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
+ADVANCE_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy", nogil=True)
+"""nogil: a frame's substeps release the GIL, so a writer's thread (an exporter
+loading its library, say) runs beside them"""
 advance = njit(**ADVANCE_OPTIONS)(_renamed(_advance, "advance"))
 advance_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(_renamed(_advance, "advance_parallel"))
 
