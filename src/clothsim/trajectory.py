@@ -160,6 +160,11 @@ class TrajectoryRecorder:
         self._times: list[float] = []
         self(sim)
 
+    @property
+    def last(self) -> np.ndarray:
+        """the positions of the frame recorded last [m], (N, 3)"""
+        return self._frames[-1]
+
     def __call__(self, sim) -> None:
         """Record the simulation's current frame."""
         self._frames.append(sim.positions.copy())
