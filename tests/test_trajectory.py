@@ -266,7 +266,7 @@ def test_obj_sequence_writes_every_frame(scene, tmp_path, background):
     with ObjSequence(out, sim.model.uvs, sim.model.triangles, background=background, ring_bytes=1) as seq:
         assert seq.background == (background and objtext.NATIVE_WRITE)
         for k, (p, n) in enumerate(frames):
-            seq.write(k, p, n)
+            seq.write(k, p, n if k % 2 else None)  # None: the normals are computed there
     assert sorted(os.listdir(out)) == [f"frame_{k:04d}.obj" for k in range(len(frames))]
     for k, (p, n) in enumerate(frames):
         assert (out / f"frame_{k:04d}.obj").read_bytes() == obj_bytes(p, n, sim.model.uvs, sim.model.triangles)
@@ -283,6 +283,7 @@ def test_write_frames_kernel_writes_and_renames(scene, tmp_path):
     seq = ObjSequence(tmp_path, sim.model.uvs, sim.model.triangles, background=False)
     positions = np.stack([p for p, _ in frames])
     normals = np.stack([n for _, n in frames])
+    normals[2] = np.nan  # computed by the kernel (compute[0])
     names = [os.fsencode(tmp_path / f"t{k}") + b"\0" for k in range(4)]
     names[1] = os.fsencode(tmp_path / "b.obj") + b"\0"
     names[3] = os.fsencode(tmp_path / "a.obj") + b"\0"
@@ -290,13 +291,17 @@ def test_write_frames_kernel_writes_and_renames(scene, tmp_path):
     table = np.frombuffer(b"".join(n.ljust(width, b"\0") for n in names), np.uint8).reshape(4, width)
     status = np.full(2, -1, np.int64)
     u8 = lambda b: np.frombuffer(b, np.uint8)  # noqa: E731
-    objtext.write_frames(positions, normals, np.array([2, 0]), table, u8(b"# clothsim cloth mesh\n"),
+    objtext.write_frames(positions, normals, np.array([2, 0]), np.array([True, False]),
+                         sim.model.triangles.astype(np.int32), table, u8(b"# clothsim cloth mesh\n"),
                          u8(seq.mesh.vt), u8(seq.mesh.faces), u8(b"v "), u8(b"vn "),
                          np.empty(256 * 100, np.uint8), status)
     assert status.tolist() == [objtext.FRAME_OK, objtext.FRAME_OK]
     assert sorted(os.listdir(tmp_path)) == ["a.obj", "b.obj"]
     uv, tri = sim.model.uvs, sim.model.triangles
     assert (tmp_path / "b.obj").read_bytes() == obj_bytes(*frames[2], uv, tri)
+    # the same function as Simulation.normals, compiled into the kernel: fastmath may
+    # contract its arithmetic differently there, within the last bit or two
+    np.testing.assert_allclose(normals[2], frames[2][1], rtol=1e-14, atol=1e-15)
     assert (tmp_path / "a.obj").read_bytes() == obj_bytes(*frames[0], uv, tri)
 
 

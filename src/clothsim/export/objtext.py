@@ -38,6 +38,8 @@ from .. import kernel_cache
 
 kernel_cache.configure()  # before the decorators: see kernel_cache
 
+from ..mesh import vertex_normals  # noqa: E402 - after configure(), as mesh.py itself does
+
 POW10 = np.array([10.0 ** k for k in range(23)])
 """10**0 .. 10**22, each exact in a double"""
 
@@ -292,11 +294,13 @@ FILE_MODE = 0o666
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
-def write_frames(positions, normals, slots, names, head, vt, faces, v_prefix, vn_prefix, scratch, status):
-    """For each j, write frame ``positions[slots[j]]``, ``normals[slots[j]]`` as a
-    whole OBJ file: ``head``, the v lines (%.9g), ``vt``, the vn lines (%.6g),
-    ``faces``, to the temporary file ``names[2j]`` and rename it to ``names[2j+1]``
-    (``names``: (2J, L) uint8, NUL-terminated paths). ``status[j]``: FRAME_OK,
+def write_frames(positions, normals, slots, compute, triangles, names, head, vt, faces, v_prefix, vn_prefix,
+                 scratch, status):
+    """For each j, write frame ``positions[slots[j]]``, ``normals[slots[j]]`` (first
+    computed there from ``triangles`` where ``compute[j]``) as a whole OBJ file:
+    ``head``, the v lines (%.9g), ``vt``, the vn lines (%.6g), ``faces``, to the
+    temporary file ``names[2j]`` and rename it to ``names[2j+1]`` (``names``:
+    (2J, L) uint8, NUL-terminated paths). ``status[j]``: FRAME_OK,
     FRAME_WRITE_FAILED (the caller learns why by writing it again) or
     FRAME_UNDECIDED (the caller formats it with Python). Holds no GIL."""
     base = np.uint64(names.ctypes.data)
@@ -304,6 +308,8 @@ def write_frames(positions, normals, slots, names, head, vt, faces, v_prefix, vn
     for j in range(slots.shape[0]):
         status[j] = FRAME_WRITE_FAILED
         s = slots[j]
+        if compute[j]:
+            vertex_normals(positions[s], triangles, normals[s])
         mid = _format_rows(positions[s], v_prefix, 9, scratch, 0)
         end = UNDECIDED if mid == UNDECIDED else _format_rows(normals[s], vn_prefix, 6, scratch, mid)
         if end == UNDECIDED:
