@@ -27,8 +27,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from .. import kernel_cache
+from .provot import provot
 
 PREWARM = "CLOTHSIM_PREWARM"
 """set to 0 to compile in one process only"""
@@ -74,7 +76,6 @@ def calls(variant: str) -> list:
     """(kernel, arguments) in the reverse of the order the substep types them."""
     from .colliders import collide
     from .groups import Control, Knobs, Points, Scratch
-    from .provot import provot
     from .selfcollide import NeighbourList
     from .selfcollide.collide import _close_up, _copy
     from .selfcollide.drift import _to_single, drift_bound
@@ -109,7 +110,7 @@ def calls(variant: str) -> list:
     zero, i64 = np.int64(0), np.int64(n)
     f32 = np.float32(1.0)
     out = [(_farthest, (P, points.center)),
-           (provot, (P, springs, knobs.enabled, scratch.masks[0], zero, i64, np.bool_(False))),
+           (_provot_both, (P, springs, knobs.enabled, scratch.masks[0], zero, i64)),
            (collide, (P, L, points.free, control, zero, i64))]
     push, count, touched = lists.push, lists.count, lists.touched
     out += [(apply_pushes, (P, push, count, points.free, 1.0, zero, i64)),
@@ -127,6 +128,14 @@ def calls(variant: str) -> list:
             (_from_planes, (P, np.zeros((n, 3)))),
             (vertex_normals, (np.zeros((n, 3)), triangles, np.zeros((n, 3))))]
     return out
+
+
+@njit(cache=False)
+def _provot_both(P, springs, enabled, masks, lo, hi):
+    """provot with its switch a constant, both ways, as the substep calls it: a
+    call from Python would compile it for a run-time switch instead"""
+    provot(P, springs, enabled, masks, lo, hi, False)
+    provot(P, springs, enabled, masks, lo, lo, True)
 
 
 def main(variant: str, lock: str | None = None) -> None:

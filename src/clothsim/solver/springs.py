@@ -143,15 +143,16 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     be moved as soon as its chunk is gathered: no later chunk reads it.
     """
     k_over_m = knobs.k_over_m
-    on = has_springs(k_over_m)  # a variable, not a constant: one compile of verlet_gather
-    if not on:
-        verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, on)
+    # the switch of verlet_gather is a constant: compiled for each value, its
+    # loop ran faster than with the switch a run-time value
+    if not has_springs(k_over_m):
+        verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, False)
         return
     for lo in range(first, stop, CHUNK):
         hi = min(lo + CHUNK, stop)
         spring_forces(P, k_over_m, springs, F, lo, hi)
         if lo >= moved:
-            verlet_gather(P, L, free, knobs, springs, F, lo, hi, on)
+            verlet_gather(P, L, free, knobs, springs, F, lo, hi, True)
 
 
 @njit(**KERNEL_OPTIONS)
@@ -160,7 +161,10 @@ def gather_ahead(P, L, free, knobs, springs, F, lo, hi):
     ``springs.ahead`` of the next part), from the forces every part wrote."""
     on = has_springs(knobs.k_over_m)
     for q in range(lo, hi, CHUNK):
-        verlet_gather(P, L, free, knobs, springs, F, q, min(q + CHUNK, hi), on)
+        if on:  # constants, as in integrate: the same two compiles serve both
+            verlet_gather(P, L, free, knobs, springs, F, q, min(q + CHUNK, hi), True)
+        else:
+            verlet_gather(P, L, free, knobs, springs, F, q, min(q + CHUNK, hi), False)
 
 
 @njit(cache=True, inline="always")

@@ -94,10 +94,10 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     _to_planes(positions, P)
     _to_planes(last_positions, L)
     n = P.shape[1]
-    # every call takes its ranges and switches as variables, never as constants:
-    # numba compiles a kernel once per distinct literal argument, and the
-    # first run of a scene paid for each
-    inside, across = np.bool_(False), np.bool_(True)
+    # every call takes its ranges as variables, never as constants: numba
+    # compiles a kernel once per distinct literal argument, and the first run
+    # of a scene paid for each. Provot's switch is the exception: compiled for
+    # each value, its pass ran faster
     for _ in range(substeps):
         # a part's last springs reach into the next part's first points: those
         # are moved only once every part has its forces
@@ -114,10 +114,10 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
         for t in prange(parts):
             lo, hi = _chunk_range(n, parts, t)
             collide(P, L, free, control, lo, hi)
-            provot(P, springs, enabled, masks[t], lo, hi, inside)
+            provot(P, springs, enabled, masks[t], lo, hi, False)
         for t in range(1, parts):
             lo, _ = _chunk_range(n, parts, t)
-            provot(P, springs, enabled, masks[0], lo, lo, across)
+            provot(P, springs, enabled, masks[0], lo, lo, True)
         if handle >= 0:
             _hold(P, handle, handle_pos)
     _from_planes(P, positions)
