@@ -241,10 +241,11 @@ BROWSER_FLAGS = [
 ]
 
 
-def browse(url: str, tmp_path: Path, *action: str) -> subprocess.CompletedProcess:
+def browse(url: str, tmp_path: Path, *action: str, budget_ms: int = 8000) -> subprocess.CompletedProcess:
     profile = tmp_path / f"profile-{len(list(tmp_path.glob('profile-*')))}"
-    return subprocess.run([CHROMIUM, *BROWSER_FLAGS, f"--user-data-dir={profile}", *action, url],
-                          capture_output=True, text=True, timeout=180, cwd=tmp_path)
+    flags = [f for f in BROWSER_FLAGS if not f.startswith("--virtual-time-budget=")]
+    return subprocess.run([CHROMIUM, *flags, f"--virtual-time-budget={budget_ms}", f"--user-data-dir={profile}",
+                           *action, url], capture_output=True, text=True, timeout=180, cwd=tmp_path)
 
 
 def screenshot(page: Path, fragment: str, tmp_path: Path) -> np.ndarray:
@@ -256,9 +257,9 @@ def screenshot(page: Path, fragment: str, tmp_path: Path) -> np.ndarray:
     return np.asarray(Image.open(png).convert("RGB")).astype(float)
 
 
-def state(page: Path, fragment: str, tmp_path: Path) -> dict[str, str]:
+def state(page: Path, fragment: str, tmp_path: Path, budget_ms: int = 8000) -> dict[str, str]:
     """the <html> element's data-* attributes after the page ran"""
-    result = browse(f"{page.as_uri()}{fragment}", tmp_path, "--dump-dom")
+    result = browse(f"{page.as_uri()}{fragment}", tmp_path, "--dump-dom", budget_ms=budget_ms)
     tag = re.search(r"<html[^>]*>", result.stdout)
     assert tag, result.stderr[-2000:]
     return dict(re.findall(r'data-(\w+)="([^"]*)"', tag.group(0)))
@@ -288,6 +289,10 @@ def test_browser_plays_the_page(sphere_page, tmp_path):
     assert ready["state"] == "ready" and ready["frame"] == "90" and ready["playing"] == "false", ready
     playing = state(sphere_page, "", tmp_path)
     assert playing["state"] == "ready" and playing["playing"] == "true", playing
+    if int(playing["stepped"]) == 0:
+        # on a loaded machine the budget can run out before the first animation
+        # frame: once more with three times the time
+        playing = state(sphere_page, "", tmp_path, budget_ms=24000)
     assert int(playing["stepped"]) > 0  # it moved on by itself
 
 

@@ -19,7 +19,8 @@ from .trajectory import Trajectory, TrajectoryRecorder
 
 def _write_npz(path: Path, traj: Trajectory) -> None:
     buf = io.BytesIO()
-    np.savez_compressed(buf, positions=traj.positions, times=traj.times, triangles=traj.triangles,
+    # uncompressed: deflate shrank float positions by a sixth and took longer than the run
+    np.savez(buf, positions=traj.positions, times=traj.times, triangles=traj.triangles,
                         uvs=traj.uvs, scene=np.array(json.dumps(traj.scene)))
     path.write_bytes(buf.getvalue())
 
