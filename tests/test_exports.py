@@ -42,3 +42,15 @@ def test_obj_sequence_one_file_per_frame(tmp_path, write_scene, capsys):
     assert first != last and first.count("\nv ") == 256
     assert main(args[:3] + [str(tmp_path / "y.png")] + args[4:]) == 2
     assert "already holds frame_" in capsys.readouterr().err
+
+
+def test_outputs_get_the_mode_of_the_users_umask(tmp_path):
+    """a finished output is readable as any file the user makes, not 0600 like a temp file"""
+    import os
+    import stat
+
+    from clothsim.outputs import UMASK, write_atomic
+
+    out = tmp_path / "out.txt"
+    write_atomic(out, lambda tmp: tmp.write_text("x"))
+    assert stat.S_IMODE(os.stat(out).st_mode) == 0o666 & ~UMASK

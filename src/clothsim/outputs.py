@@ -11,6 +11,17 @@ from pathlib import Path
 from .errors import ClothsimError
 
 
+def _read_umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+UMASK = _read_umask()
+"""the process's umask, read once at import (setting it to read it is not
+thread-safe): a finished output gets the mode a plain open() would give it"""
+
+
 class OutputError(ClothsimError):
     """An output file cannot be written where the user asked."""
 
@@ -36,6 +47,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     os.close(fd)
     try:
         yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~UMASK)  # mkstemp makes it 0600
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
