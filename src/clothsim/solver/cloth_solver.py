@@ -9,6 +9,7 @@ from ..model import Model
 from ..params import Params
 from ..state import State
 from . import prewarm
+from .colliders import KINDS
 from .groups import Control, Knobs, Points, Scratch
 from .selfcollide import NeighbourList, near_stencil, skin_factor
 from .shared import BLOCK
@@ -90,7 +91,7 @@ class ClothSolver:
         or parallel, and the collider kinds the scene has (each compiles only
         where present, see :mod:`.colliders`)."""
         parts = ["serial" if self.parts == 1 else "parallel"]
-        parts += [name for name in ("spheres", "planes") if getattr(control, name) is not None]
+        parts += [name for name in KINDS if getattr(control, name) is not None]
         return "+".join(parts)
 
     def is_compiled(self, control: Control, params: Params) -> bool:

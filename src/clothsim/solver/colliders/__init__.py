@@ -9,8 +9,8 @@ returns at once when its rows are None; numba prunes that branch when it
 compiles the substep for a scene without the kind, so a scene compiles only
 the colliders it has.
 
-Adding a kind: its module, its field in :class:`~clothsim.solver.groups.Control`,
-its line in :func:`collide` and in :func:`pack_colliders`. The colliders are
+Adding a kind: its module, its field in :class:`~clothsim.solver.groups.Control`
+and in :data:`KINDS`, its line in :func:`collide` and in :func:`pack_colliders`. The colliders are
 fields of the control group itself, not a group of their own inside it:
 numba cannot hand a named tuple read from another one into a ``prange`` body.
 """
@@ -22,6 +22,11 @@ from numba import njit
 from . import plane, sphere
 from .plane import PLANE_OFFSET, collide_planes
 from .sphere import collide_spheres
+
+
+KINDS = ("spheres", "planes")
+"""the collider fields of :class:`~clothsim.solver.groups.Control`, in the order
+:func:`collide` walks them"""
 
 
 def pack_colliders(spheres, planes) -> dict:
@@ -38,4 +43,4 @@ def collide(P, L, free, control, lo, hi):
     collide_planes(P, L, free, control.planes, lo, hi)
 
 
-__all__ = ["PLANE_OFFSET", "collide", "collide_planes", "collide_spheres", "pack_colliders"]
+__all__ = ["KINDS", "PLANE_OFFSET", "collide", "collide_planes", "collide_spheres", "pack_colliders"]
