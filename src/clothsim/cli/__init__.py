@@ -45,6 +45,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("clothsim: interrupted", file=sys.stderr)
         return 130
+    except SystemError as exc:
+        # an interrupt that lands while numba loads or calls compiled code comes
+        # back as a SystemError whose cause is the KeyboardInterrupt
+        if not _interrupted(exc):
+            raise
+        print("clothsim: interrupted", file=sys.stderr)
+        return 130
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` was caused, at any depth, by a KeyboardInterrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 __all__ = ["build_parser", "main"]
