@@ -14,7 +14,9 @@ and exit code 2.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from .. import __version__
@@ -35,34 +37,53 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt, so that
+    every output being written is removed on the way out."""
+
+
+def _terminate(signum, frame) -> None:
+    raise Terminated()
+
+
+EXIT_CODES = {KeyboardInterrupt: 130, Terminated: 143}
+"""the shell's codes for a run stopped by SIGINT (Ctrl-C) and by SIGTERM"""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    previous = signal.getsignal(signal.SIGTERM)
+    in_main = threading.current_thread() is threading.main_thread()
+    if in_main:
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.func(args)
     except ClothsimError as exc:
         print(f"clothsim: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("clothsim: interrupted", file=sys.stderr)
-        return 130
-    except SystemError as exc:
+    except (KeyboardInterrupt, Terminated, SystemError) as exc:
         # an interrupt that lands while numba loads or calls compiled code comes
-        # back as a SystemError whose cause is the KeyboardInterrupt
-        if not _interrupted(exc):
+        # back as a SystemError whose cause is the interrupt
+        stop = _stopped_by(exc)
+        if stop is None:
             raise
         print("clothsim: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_CODES[stop]
+    finally:
+        if in_main:
+            signal.signal(signal.SIGTERM, previous)
 
 
-def _interrupted(exc: BaseException) -> bool:
-    """Whether ``exc`` was caused, at any depth, by a KeyboardInterrupt."""
+def _stopped_by(exc: BaseException | None) -> type | None:
+    """KeyboardInterrupt or Terminated where ``exc`` is one or was caused by one, else None."""
     seen = set()
     while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
+        for kind in EXIT_CODES:
+            if isinstance(exc, kind):
+                return kind
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
-    return False
+    return None
 
 
 __all__ = ["build_parser", "main"]
