@@ -43,6 +43,11 @@ class Cloth:
     def num_points(self) -> int:
         return self.stop - self.start
 
+    def point_mass(self, density: float) -> float:
+        """mass of one of its points [density units x m²] at ``density``, as CS184
+        computes it: the area shared evenly (density is a live parameter)"""
+        return self.area * density / self.num_points
+
 
 @dataclass(frozen=True)
 class Model:

@@ -84,8 +84,7 @@ class Simulation:
     @property
     def point_mass(self) -> float:
         """mass of one point [density units x m²], as CS184 computes it"""
-        cloth = self.model.cloth
-        return cloth.area * self.params.density / cloth.num_points
+        return self.model.cloth.point_mass(self.params.density)
 
     def reset(self) -> None:
         """Put the cloth back at its start; the parameters keep their current values."""

@@ -77,8 +77,7 @@ class ClothSolver:
 
     def knobs(self, params: Params) -> Knobs:
         """The kernels' view of the live parameters."""
-        cloth = self.model.cloths[0]
-        k = params.ks / (cloth.area * params.density / cloth.num_points)
+        k = params.ks / self.model.cloths[0].point_mass(params.density)
         enabled = params.enabled
         return Knobs(gravity=np.asarray(params.gravity, dtype=np.float64),
                      k_over_m=(np.array([k, k, 0.2 * k]) * enabled)[SET_KIND],
