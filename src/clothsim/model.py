@@ -11,11 +11,11 @@ Arrays are structure-of-arrays so that the solver kernels take them directly.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .scene import ClothSpec
+from .scene import ClothSpec, Scene
 
 STRUCTURAL, SHEARING, BENDING = 0, 1, 2
 SPRING_KINDS = ("structural", "shearing", "bending")
@@ -38,10 +38,25 @@ class Cloth:
     """extent of the rest layout along its first axis [m]"""
     height: float
     """extent of the rest layout along its second axis [m]"""
+    tri_start: int = 0
+    """its triangles are ``tri_start:tri_stop`` of the model's"""
+    tri_stop: int = 0
+    name: str = "cloth"
+    """what exports call it (the OBJ object, the USD prim): unique in a model"""
 
     @property
     def num_points(self) -> int:
         return self.stop - self.start
+
+    @property
+    def points(self) -> slice:
+        """its points in the model's arrays"""
+        return slice(self.start, self.stop)
+
+    @property
+    def triangle_range(self) -> slice:
+        """its triangles in ``Model.triangles``"""
+        return slice(self.tri_start, self.tri_stop)
 
     def point_mass(self, density: float) -> float:
         """mass of one of its points [density units x m²] at ``density``, as CS184
@@ -68,7 +83,8 @@ class Model:
     kind_start: np.ndarray
     """springs of kind k are ``kind_start[k] : kind_start[k+1]``, int64 (4,)"""
     triangles: np.ndarray
-    """vertex indices, two triangles per grid cell, int32 (T, 3), counter-clockwise seen from +y / -z"""
+    """model point indices, int32 (T, 3), each cloth's in its ``triangle_range``; for a
+    grid two per cell, counter-clockwise seen from +y / -z"""
     uvs: np.ndarray
     """texture coordinates in [0, 1]², float32 (N, 2)"""
 
@@ -192,5 +208,60 @@ def build_model(spec: ClothSpec, seed: int = 0) -> Model:
     tris = grid_triangles(nw, nh)
     for arr in (kind_start, tris):
         arr.setflags(write=False)
-    cloth = Cloth(0, nw * nh, spec.thickness, spec.width * spec.height, (nh, nw), spec.width, spec.height)
+    cloth = Cloth(0, nw * nh, spec.thickness, spec.width * spec.height, (nh, nw), spec.width, spec.height,
+                  0, len(tris))
     return Model((cloth,), pos, pinned, a, b, rest, kind, kind_start, tris, uvs)
+
+
+def concatenate(models: list[Model], names: list[str] | None = None) -> Model:
+    """One model holding the cloths of ``models`` one after another, in order:
+    points, triangles and springs renumbered, springs sorted by kind again
+    (stably: within a kind, in model order). ``names``: one per cloth, else
+    ``cloth``, ``cloth_1``, ... A single model is returned as it is, renamed."""
+    cloths = [c for m in models for c in m.cloths]
+    if names is None:
+        names = ["cloth" if k == 0 else f"cloth_{k}" for k in range(len(cloths))]
+    if len(models) == 1:
+        renamed = tuple(replace(c, name=n) for c, n in zip(models[0].cloths, names))
+        return replace(models[0], cloths=renamed)
+    point_base = np.cumsum([0] + [m.num_points for m in models])
+    tri_base = np.cumsum([0] + [len(m.triangles) for m in models])
+    out, k = [], 0
+    for m, pb, tb in zip(models, point_base, tri_base):
+        for c in m.cloths:
+            out.append(replace(c, start=c.start + int(pb), stop=c.stop + int(pb), tri_start=c.tri_start + int(tb),
+                               tri_stop=c.tri_stop + int(tb), name=names[k]))
+            k += 1
+    a = np.concatenate([m.spring_a.astype(np.int64) + pb for m, pb in zip(models, point_base)])
+    b = np.concatenate([m.spring_b.astype(np.int64) + pb for m, pb in zip(models, point_base)])
+    rest = np.concatenate([m.spring_rest for m in models])
+    kind = np.concatenate([m.spring_kind for m in models])
+    order = np.argsort(kind, kind="stable")
+    arrays = dict(
+        rest_positions=np.concatenate([m.rest_positions for m in models]),
+        pinned=np.concatenate([m.pinned for m in models]),
+        spring_a=a[order].astype(np.int32), spring_b=b[order].astype(np.int32),
+        spring_rest=rest[order], spring_kind=kind[order],
+        kind_start=np.searchsorted(kind[order], np.arange(len(SPRING_KINDS) + 1)).astype(np.int64),
+        triangles=np.concatenate([m.triangles.astype(np.int64) + pb for m, pb in zip(models, point_base)]
+                                 ).astype(np.int32),
+        uvs=np.concatenate([m.uvs for m in models]))
+    for arr in arrays.values():
+        arr.setflags(write=False)
+    return Model(cloths=tuple(out), **arrays)
+
+
+def build_scene_model(scene: Scene) -> Model:
+    """The model of every cloth of a scene, in scene order (see :func:`concatenate`)."""
+    return concatenate([_build_one(spec, scene.simulation.seed + k) for k, spec in enumerate(scene.cloths)],
+                       cloth_names(scene))
+
+
+def _build_one(spec, seed: int) -> Model:
+    return build_model(spec, seed)
+
+
+def cloth_names(scene: Scene) -> list[str]:
+    """The export names of a scene's cloths: ``cloth`` alone, else ``cloth_0``, ``cloth_1``, ..."""
+    n = len(scene.cloths)
+    return ["cloth"] if n == 1 else [f"cloth_{k}" for k in range(n)]

@@ -76,24 +76,35 @@ class SimulationSpec:
 
 @dataclass
 class Scene:
-    cloth: ClothSpec
+    cloths: list[ClothSpec]
+    """the cloths in scene order (the ``cloth`` key: one object or a list)"""
     spheres: list[SphereSpec] = field(default_factory=list)
     planes: list[PlaneSpec] = field(default_factory=list)
     simulation: SimulationSpec = field(default_factory=SimulationSpec)
     source: str | None = None
     """where the scene came from, used in messages"""
 
+    @property
+    def cloth(self) -> ClothSpec:
+        """the first cloth (the only one of a CS184 scene)"""
+        return self.cloths[0]
+
     def to_dict(self) -> dict[str, Any]:
         """The scene as a JSON-ready dict that :func:`parse_scene` reads back."""
-        cloth = asdict(self.cloth)
-        cloth["pinned"] = [list(p) for p in self.cloth.pinned]
-        out: dict[str, Any] = {"cloth": cloth}
+        cloths = [_cloth_dict(c) for c in self.cloths]
+        out: dict[str, Any] = {"cloth": cloths[0] if len(cloths) == 1 else cloths}
         if self.spheres:
             out["sphere"] = [asdict(s) for s in self.spheres]
         if self.planes:
             out["plane"] = [asdict(p) for p in self.planes]
         out["simulation"] = asdict(self.simulation)
         return json.loads(json.dumps(out))
+
+
+def _cloth_dict(spec: ClothSpec) -> dict[str, Any]:
+    cloth = asdict(spec)
+    cloth["pinned"] = [list(p) for p in spec.pinned]
+    return cloth
 
 
 # --------------------------------------------------------------------------
@@ -173,42 +184,49 @@ _CLOTH_KEYS = set(_CLOTH_REQUIRED) | {"pinned", "damping", "density", "ks", "ena
 _TOP_KEYS = {"cloth", "sphere", "plane", "simulation"}
 
 
-def _parse_cloth(r: _Reader, raw: Any) -> ClothSpec:
-    c = r.obj(raw, "cloth")
-    r.keys(c, "cloth", _CLOTH_KEYS, _CLOTH_REQUIRED)
-    nw = r.integer(c["num_width_points"], "cloth.num_width_points", lo=2)
-    nh = r.integer(c["num_height_points"], "cloth.num_height_points", lo=2)
-    orientation = r.integer(c["orientation"], "cloth.orientation")
+def _parse_cloths(r: _Reader, raw: Any) -> list[ClothSpec]:
+    """``cloth``: one object, or (extension) a non-empty list of them."""
+    if isinstance(raw, list) and not raw:
+        raise r.fail("cloth", "expected a cloth object or a non-empty list of them, got an empty list")
+    return [_parse_cloth(r, item, "cloth" + suffix) for suffix, item in _as_list(raw)]
+
+
+def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
+    c = r.obj(raw, key)
+    r.keys(c, key, _CLOTH_KEYS, _CLOTH_REQUIRED)
+    nw = r.integer(c["num_width_points"], f"{key}.num_width_points", lo=2)
+    nh = r.integer(c["num_height_points"], f"{key}.num_height_points", lo=2)
+    orientation = r.integer(c["orientation"], f"{key}.orientation")
     if orientation not in (0, 1):
-        raise r.fail("cloth.orientation", f"expected 0 (horizontal) or 1 (vertical), got {orientation}")
+        raise r.fail(f"{key}.orientation", f"expected 0 (horizontal) or 1 (vertical), got {orientation}")
     pinned_raw = c.get("pinned", [])
     if not isinstance(pinned_raw, list):
-        raise r.fail("cloth.pinned", f"expected a list of [i, j] pairs, got {_describe(pinned_raw)}")
+        raise r.fail(f"{key}.pinned", f"expected a list of [i, j] pairs, got {_describe(pinned_raw)}")
     pinned: list[tuple[int, int]] = []
     for k, p in enumerate(pinned_raw):
-        key = f"cloth.pinned[{k}]"
+        pkey = f"{key}.pinned[{k}]"
         if not isinstance(p, list) or len(p) != 2:
-            raise r.fail(key, f"expected a pair [i, j], got {_describe(p)}")
-        i = r.integer(p[0], key + "[0]")
-        j = r.integer(p[1], key + "[1]")
+            raise r.fail(pkey, f"expected a pair [i, j], got {_describe(p)}")
+        i = r.integer(p[0], pkey + "[0]")
+        j = r.integer(p[1], pkey + "[1]")
         if not (0 <= i < nw and 0 <= j < nh):
-            raise r.fail(key, f"expected a point inside the {nw}x{nh} grid (i in 0..{nw - 1}, "
+            raise r.fail(pkey, f"expected a point inside the {nw}x{nh} grid (i in 0..{nw - 1}, "
                               f"j in 0..{nh - 1}), got [{i}, {j}]")
         pinned.append((i, j))
     return ClothSpec(
-        width=r.number(c["width"], "cloth.width", lo=0, lo_open=True),
-        height=r.number(c["height"], "cloth.height", lo=0, lo_open=True),
+        width=r.number(c["width"], f"{key}.width", lo=0, lo_open=True),
+        height=r.number(c["height"], f"{key}.height", lo=0, lo_open=True),
         num_width_points=nw,
         num_height_points=nh,
-        thickness=r.number(c["thickness"], "cloth.thickness", lo=0, lo_open=True),
+        thickness=r.number(c["thickness"], f"{key}.thickness", lo=0, lo_open=True),
         orientation=orientation,
         pinned=pinned,
-        damping=r.number(c.get("damping", 0.2), "cloth.damping", lo=0, hi=100),
-        density=r.number(c.get("density", 150.0), "cloth.density", lo=0, lo_open=True),
-        ks=r.number(c.get("ks", 5000.0), "cloth.ks", lo=0),
-        enable_structural=r.boolean(c.get("enable_structural", True), "cloth.enable_structural"),
-        enable_shearing=r.boolean(c.get("enable_shearing", True), "cloth.enable_shearing"),
-        enable_bending=r.boolean(c.get("enable_bending", True), "cloth.enable_bending"),
+        damping=r.number(c.get("damping", 0.2), f"{key}.damping", lo=0, hi=100),
+        density=r.number(c.get("density", 150.0), f"{key}.density", lo=0, lo_open=True),
+        ks=r.number(c.get("ks", 5000.0), f"{key}.ks", lo=0),
+        enable_structural=r.boolean(c.get("enable_structural", True), f"{key}.enable_structural"),
+        enable_shearing=r.boolean(c.get("enable_shearing", True), f"{key}.enable_shearing"),
+        enable_bending=r.boolean(c.get("enable_bending", True), f"{key}.enable_bending"),
     )
 
 
@@ -277,7 +295,7 @@ def parse_scene(data: Any, source: str | None = None) -> Scene:
     if "cloth" not in data:
         raise r.fail("cloth", "missing required key")
     return Scene(
-        cloth=_parse_cloth(r, data["cloth"]),
+        cloths=_parse_cloths(r, data["cloth"]),
         spheres=_parse_spheres(r, data["sphere"]) if "sphere" in data else [],
         planes=_parse_planes(r, data["plane"]) if "plane" in data else [],
         simulation=_parse_simulation(r, data.get("simulation", {})),

@@ -11,14 +11,57 @@ import numpy as np
 from .errors import SimulationError
 from .export import write_obj
 from .mesh import compute_normals
-from .model import Model, build_model
-from .params import Params
+from .model import Cloth, Model, build_scene_model
+from .params import Material, Params
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
 from .solver import ClothSolver, Control
 from .solver.cloth_solver import RUNAWAY_FACTOR
 from .state import State
 
-__all__ = ["Params", "Simulation", "State"]
+__all__ = ["ClothView", "Material", "Params", "Simulation", "State"]
+
+
+@dataclass(frozen=True)
+class ClothView:
+    """One cloth of a running simulation: ``sim.cloths[i]``."""
+
+    sim: Simulation
+    index: int
+    """its place in the scene's ``cloth`` list"""
+
+    @property
+    def model(self) -> Cloth:
+        """its part of the model: point and triangle ranges, thickness, area"""
+        return self.sim.model.cloths[self.index]
+
+    @property
+    def name(self) -> str:
+        return self.model.name
+
+    @property
+    def params(self) -> Material:
+        """its live material (ks, density, damping, enable_*), edited between frames"""
+        return self.sim.params.cloths[self.index]
+
+    @property
+    def positions(self) -> np.ndarray:
+        """its points' positions [m], a view into ``sim.positions``, (n, 3)"""
+        return self.sim.positions[self.model.points]
+
+    @property
+    def pinned(self) -> np.ndarray:
+        """its pinned points, bool (n,)"""
+        return self.sim.model.pinned[self.model.points]
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """its triangles, indices into its own points, int32 (t, 3)"""
+        return self.sim.model.triangles[self.model.triangle_range] - self.model.start
+
+    @property
+    def point_mass(self) -> float:
+        """mass of one of its points [density units x m²], as CS184 computes it"""
+        return self.model.point_mass(self.params.density)
 
 
 @dataclass
@@ -44,7 +87,7 @@ class Simulation:
     planes: list[PlaneSpec] = field(init=False)
 
     def __post_init__(self) -> None:
-        self.model = build_model(self.scene.cloth, self.scene.simulation.seed)
+        self.model = build_scene_model(self.scene)
         self.params = Params.from_scene(self.scene)
         self.spheres = copy.deepcopy(self.scene.spheres)
         self.planes = copy.deepcopy(self.scene.planes)
@@ -63,8 +106,14 @@ class Simulation:
 
     @property
     def positions(self) -> np.ndarray:
-        """point mass positions [m], float64 (N, 3), row-major grid order"""
+        """point mass positions [m] of every cloth in scene order, float64 (N, 3);
+        a grid's row-major, a mesh's in its file's vertex order"""
         return self.state.positions
+
+    @property
+    def cloths(self) -> list[ClothView]:
+        """the cloths in scene order, each with its live ``params`` and its points"""
+        return [ClothView(self, k) for k in range(len(self.model.cloths))]
 
     @property
     def normals(self) -> np.ndarray:
@@ -83,8 +132,11 @@ class Simulation:
 
     @property
     def point_mass(self) -> float:
-        """mass of one point [density units x m²], as CS184 computes it"""
-        return self.model.cloth.point_mass(self.params.density)
+        """mass of one point of the only cloth [density units x m²], as CS184
+        computes it (a scene of several: ``sim.cloths[i].point_mass``)"""
+        if len(self.model.cloths) != 1:
+            raise AttributeError(f"the scene has {len(self.model.cloths)} cloths: use sim.cloths[i].point_mass")
+        return self.cloths[0].point_mass
 
     def reset(self) -> None:
         """Put the cloth back at its start; the parameters keep their current values."""

@@ -77,11 +77,12 @@ class ClothSolver:
 
     def knobs(self, params: Params) -> Knobs:
         """The kernels' view of the live parameters."""
-        k = params.ks / self.model.cloths[0].point_mass(params.density)
-        enabled = params.enabled
+        material = params.cloths[0]
+        k = material.ks / self.model.cloths[0].point_mass(material.density)
+        enabled = material.enabled
         return Knobs(gravity=np.asarray(params.gravity, dtype=np.float64),
                      k_over_m=(np.array([k, k, 0.2 * k]) * enabled)[SET_KIND],
-                     enabled=enabled[SET_KIND], keep=1.0 - params.damping / 100.0, dt2=params.dt * params.dt,
+                     enabled=enabled[SET_KIND], keep=1.0 - material.damping / 100.0, dt2=params.dt * params.dt,
                      simulation_steps=int(params.simulation_steps),
                      self_collision=bool(params.self_collision))
 
