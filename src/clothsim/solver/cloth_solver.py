@@ -50,8 +50,13 @@ class ClothSolver:
         """``first``: the control and params of the first step, where known. If
         its kernels are not in the cache yet, a second process starts
         compiling them at once (see :mod:`.prewarm`), while this one builds."""
-        if len(model.cloths) != 1 or model.cloths[0].grid is None:
-            raise ValueError("the solver takes a model of one grid cloth")
+        self.model = model
+        self.parts = parts_for(model.num_points, threads)
+        self._warm: set[str] = set()
+        self.unsupported = len(model.cloths) != 1 or model.cloths[0].grid is None
+        if self.unsupported:  # the general path is on its way: until then such a model cannot step
+            self.runaway2 = np.inf
+            return
         cloth = model.cloths[0]
         rows, cols = cloth.grid
         n = model.num_points
@@ -104,6 +109,8 @@ class ClothSolver:
     def step(self, state: State, control: Control, params: Params, substeps: int) -> float:
         """Advance ``state`` by ``substeps`` substeps of ``params.dt`` in place; returns the
         largest squared distance of a point from the start [m²] (inf when not finite)."""
+        if self.unsupported:
+            raise ValueError("the solver steps a model of one grid cloth only")
         far2, pairs = self._advance(state.positions, state.last_positions, self.points, self.springs,
                                     self.knobs(params), control, self.lists, self.lists.pairs, self.scratch,
                                     substeps)
