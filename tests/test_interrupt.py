@@ -47,7 +47,12 @@ def test_sigterm_stops_a_run_with_143_and_leaves_no_partial_file(tmp_path):
     run = subprocess.Popen([sys.executable, "-m", "clothsim", "simulate", "sphere", "--seconds", "120",
                             "--no-progress", "--export-sequence", str(frames), "--export-usd", str(usd)],
                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(4.0)
+    # until the run writes frames (a cold start may take a while), then a moment more
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and run.poll() is None and not (
+            frames.is_dir() and any(p.suffix == ".obj" for p in frames.iterdir())):
+        time.sleep(0.2)
+    time.sleep(1.0)
     run.send_signal(signal.SIGTERM)
     out, err = run.communicate(timeout=60)
     lines = [line for line in err.splitlines() if not line.startswith("clothsim: compiling")]
