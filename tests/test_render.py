@@ -224,3 +224,201 @@ def test_cli_video(tmp_path, capsys, suffix):
     frames = iio.imread(out, index=None)
     assert len(frames) == 7  # t = 0, 1/30, ..., 6/30
     assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean() > 1.0
+
+
+# ---------------------------------------------------------------- meshes and several cloths
+
+
+def _flat_mesh(seed=3):
+    """an irregular flat mesh in a tilted plane, uvs an affine map of its
+    in-plane coordinates: its true dP/du is known"""
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(seed)
+    st = np.concatenate([rng.uniform(0, 1, (60, 2)), [[0, 0], [1, 0], [0, 1], [1, 1]]])
+    tri = Delaunay(st).simplices.astype(np.int32)
+    e1, e2 = np.array([0.8, 0.3, 0.1]), np.array([-0.2, 0.5, 0.9])
+    pos = np.array([0.1, 0.2, 0.3]) + st[:, :1] * e1 + st[:, 1:] * e2
+    a = np.array([[0.6, 0.5], [-0.4, 0.7]])  # uv = a @ (s, t) + b
+    uvs = st @ a.T + np.array([0.1, 0.2])
+    n = np.cross(e1, e2)
+    return pos, tri, uvs, np.tile(n / np.linalg.norm(n), (len(pos), 1)), e1, e2, a
+
+
+def test_uv_tangents_follow_u_on_an_irregular_mesh():
+    """on a flat irregular mesh with an affine uv map every vertex's tangent is
+    the unit dP/du of that map (exact to rounding), perpendicular to the normal"""
+    from clothsim.render.tangents import UvTangents
+
+    pos, tri, uvs, normals, e1, e2, a = _flat_mesh()
+    inv = np.linalg.inv(a)  # (s, t) = inv @ (uv - b): dP/du = e1 inv[0, 0] + e2 inv[1, 0]
+    expected = e1 * inv[0, 0] + e2 * inv[1, 0]
+    expected /= np.linalg.norm(expected)
+    t = UvTangents(uvs, tri)(pos, normals)
+    np.testing.assert_allclose(t, np.tile(expected, (len(pos), 1)), atol=1e-12)
+    # a mirrored map (u -> 1 - u) turns the tangent round
+    mirrored = uvs * [-1.0, 1.0] + [1.0, 0.0]
+    np.testing.assert_allclose(UvTangents(mirrored, tri)(pos, normals), -t, atol=1e-12)
+
+
+def test_uv_tangents_orthogonal_to_a_bent_normal_and_degenerate_fallback():
+    """a tangent is made perpendicular to its vertex normal; a vertex whose
+    triangles all have degenerate uvs gets the shaders' fallback n x (1, 0, 0)
+    (|n_y| >= 0.9), one whose triangles are partly degenerate the others' tangent"""
+    from clothsim.render.tangents import UvTangents, perpendicular
+
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1], [2, 0, 0]], float)
+    tri = np.array([[0, 2, 1], [1, 2, 3], [1, 3, 4]], np.int32)
+    uvs = np.array([[0, 0], [1, 0], [0, 1], [1, 1], [1, 0]], np.float32)  # the last triangle: collinear uvs
+    normals = np.tile([0.0, 1.0, 0.0], (5, 1))
+    normals[0] = [0.6, 0.8, 0.0]  # a tilted normal at vertex 0
+    t = UvTangents(uvs, tri)
+    assert t.degenerate == 1
+    out = t(pos, normals)
+    np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1.0)
+    np.testing.assert_allclose(np.sum(out * normals, axis=1), 0.0, atol=1e-15)
+    np.testing.assert_allclose(out[0], [0.8, -0.6, 0.0], atol=1e-15)  # +x, made perpendicular
+    np.testing.assert_allclose(out[1:4], np.tile([1.0, 0.0, 0.0], (3, 1)), atol=1e-15)
+    np.testing.assert_allclose(out[4], [0.0, 0.0, -1.0])  # only the degenerate triangle: y x x = -z
+    np.testing.assert_allclose(perpendicular([[1.0, 0.0, 0.0]]), [[0.0, 0.0, 1.0]])  # x x y = z
+    flat = UvTangents(np.zeros((5, 2)), tri)(pos, normals)  # every uv the same point
+    np.testing.assert_allclose(flat[1:], np.tile([0.0, 0.0, -1.0], (4, 1)))
+
+
+def test_grid_tangents_run_along_the_width():
+    """the plane scene's flat grid: every tangent is +x, as the width index grows"""
+    from clothsim.render.scene_view import cloth_tangents
+
+    sim = Simulation.from_file(SCENES / "plane.json")
+    np.testing.assert_allclose(cloth_tangents(sim)(sim.positions, sim.normals),
+                               np.tile([1.0, 0.0, 0.0], (sim.model.num_points, 1)), atol=1e-12)
+
+
+def _blobs(mask):
+    from scipy import ndimage
+
+    labels, count = ndimage.label(mask)
+    sizes = ndimage.sum(mask, labels, range(1, count + 1))
+    keep = [k + 1 for k in np.flatnonzero(sizes > 20)]
+    return labels, keep
+
+
+def _projected_centre(points, camera, size):
+    from clothsim.viewer.picking import project
+
+    px, _ = project(points, camera.view_projection(size[0] / size[1]), size)
+    return px.mean(axis=0)
+
+
+def test_two_cloths_are_two_blobs_where_they_hang(renderer):
+    """a scene of two grid cloths (one above, one hanging below) renders with
+    Phong as two separate blobs of the cloth colour, each round the projection
+    of its own cloth's centre"""
+    from clothsim.scene import parse_scene
+
+    from .handmade import two_cloth_scene
+
+    sim = Simulation(parse_scene(two_cloth_scene(), "two"))
+    cam = default_camera(sim, fixed=False)
+    img = render(renderer, sim, cam, shader="Phong")
+    fg = foreground(img)
+    labels, blobs = _blobs(fg)
+    assert len(blobs) == 2
+    assert not fg[0].any() and not fg[-1].any() and not fg[:, 0].any() and not fg[:, -1].any()
+    red = img[fg].astype(int)
+    assert (red[:, 0] > red[:, 1] + 20).mean() > 0.95  # the cloth colour: red over green
+    for cloth in sim.cloths:
+        cx, cy = _projected_centre(cloth.positions, cam, SIZE)
+        assert labels[int(round(cy)), int(round(cx))] in blobs
+    ids = [labels[int(round(c[1])), int(round(c[0]))]
+           for c in (_projected_centre(cl.positions, cam, SIZE) for cl in sim.cloths)]
+    assert ids[0] != ids[1]
+
+
+@pytest.mark.parametrize("name", ORDER)
+def test_every_shader_draws_a_mesh_cloth(renderer, name):
+    """each built-in shader draws a model of a Delaunay disc (no grid) beside a
+    grid cloth: two blobs, each over its cloth's projected centre, no pixel of
+    the disc's interior black (NaN tangents or normals would leave them so)"""
+    from .handmade import disc_and_grid, simulation_of
+
+    sim = simulation_of(disc_and_grid())
+    cam = default_camera(sim, fixed=False)
+    img = render(renderer, sim, cam, shader=name)
+    fg = foreground(img)
+    labels, blobs = _blobs(fg)
+    assert not fg[0].any() and not fg[-1].any() and not fg[:, 0].any() and not fg[:, -1].any()
+    centres = [_projected_centre(c.positions, cam, SIZE) for c in sim.cloths]
+    if name == "Wireframe":  # lines: fragments of cloth round each centre
+        for cx, cy in centres:
+            assert fg[int(cy) - 6:int(cy) + 7, int(cx) - 6:int(cx) + 7].sum() > 10
+        return
+    assert len(blobs) == 2
+    disc = labels == labels[int(round(centres[0][1])), int(round(centres[0][0]))]
+    assert disc.sum() > 300
+    assert (img[interior(disc)].astype(int).sum(axis=1) > 30).all()
+
+
+def test_bump_and_displacement_work_on_a_mesh(renderer):
+    """on the disc the bumps show (Bump differs from Phong inside, same outline)
+    and Displacement moves the outline, as on a grid"""
+    from .handmade import disc_model, simulation_of
+
+    sim = simulation_of(disc_model())
+    cam = OrbitCamera(target=np.array([0.5, 1.0, 0.5]), azimuth=20, elevation=50, distance=2.2)
+    phong = render(renderer, sim, cam, shader="Phong")
+    bump = render(renderer, sim, cam, shader="Bump", height_scaling=0.05)
+    disp = render(renderer, sim, cam, shader="Displacement", height_scaling=0.05)
+    inside = interior(foreground(phong))
+    assert np.array_equal(foreground(bump), foreground(phong))
+    assert np.abs(bump[inside].astype(int) - phong[inside]).sum(axis=1).mean() > 3
+    assert (foreground(disp) != foreground(phong)).sum() > 30
+
+
+def test_phong_disc_from_above_is_round(renderer):
+    """the Phong image of the disc seen from straight above is a circle: it
+    fills pi/4 of its bounding square (a square cloth fills all of it)"""
+    from .handmade import disc_model, simulation_of
+
+    sim = simulation_of(disc_model())
+    cam = OrbitCamera(target=np.array([0.5, 1.0, 0.5]), azimuth=0, elevation=89.9, distance=2.5)
+    fg = foreground(render(renderer, sim, cam, shader="Phong"))
+    rows, cols = np.flatnonzero(fg.any(axis=1)), np.flatnonzero(fg.any(axis=0))
+    h, w = rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1
+    assert abs(h - w) <= 2 and h > 60
+    assert fg.sum() / (h * w) == pytest.approx(np.pi / 4, abs=0.04)
+
+
+def test_wireframe_of_several_cloths_follows_each_cloths_toggles():
+    """the wireframe's lines are the springs that act, by their own cloth's
+    material: turning shearing off in the second cloth drops its shearing
+    springs only, and SimulationView rebuilds the lines on sync"""
+    from clothsim.model import SHEARING
+    from clothsim.render.scene_view import spring_lines
+    from clothsim.scene import parse_scene
+    from clothsim.spring_mask import spring_cloth
+
+    from .handmade import two_cloth_scene
+
+    sim = Simulation(parse_scene(two_cloth_scene(), "two"))
+    m = sim.model
+    assert len(spring_lines(sim)) == m.num_springs
+    sim.cloths[1].params.enable_shearing = False
+    lines = spring_lines(sim)
+    owner = spring_cloth(m)
+    dropped = (owner == 1) & (m.spring_kind == SHEARING)
+    assert dropped.sum() == 2 * 11 * 7 and len(lines) == m.num_springs - dropped.sum()
+    kept = {tuple(p) for p in lines.tolist()}
+    assert all((a, b) not in kept for a, b in zip(m.spring_a[dropped], m.spring_b[dropped]))
+    assert all((a, b) in kept for a, b in zip(m.spring_a[~dropped][:50], m.spring_b[~dropped][:50]))
+
+
+def test_fixed_camera_keeps_the_rest_layout_in_view(renderer):
+    """the reach-box camera (videos, sweeps) shows the whole cloth at rest, and
+    so does the still camera of a flat cloth at rest (its bounding sphere alone
+    left a corner out of the default oblique view)"""
+    sim = Simulation.from_file(SCENES / "pinned2.json")
+    for fixed in (True, False):
+        fg = foreground(render(renderer, cloth_only(sim), default_camera(sim, fixed=fixed), shader="Normal"))
+        assert fg.mean() > 0.05
+        assert not fg[0].any() and not fg[-1].any() and not fg[:, 0].any() and not fg[:, -1].any()

@@ -89,3 +89,25 @@ def framing(lo: np.ndarray, hi: np.ndarray, fov_y: float = FOV_Y_DEG) -> tuple[n
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-3)
     # a box seen from an oblique angle covers less than its bounding sphere
     return center, 0.8 * radius / math.sin(math.radians(fov_y) / 2.0)
+
+
+def fit_points(camera: OrbitCamera, points: np.ndarray, aspect: float = 1.0, margin: float = 0.92) -> OrbitCamera:
+    """Move ``camera`` back along its view (never closer) until every one of
+    ``points`` [m] (M, 3) lies within ``margin`` of the image's half-width and
+    half-height, for an image ``aspect`` = width / height; returns the camera.
+
+    :func:`framing` fits a box by its bounding sphere, which leaves a wide flat
+    layout (a cloth at rest, several cloths side by side) partly out of view
+    from the default oblique angle; this fixes that and nothing else."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    if not len(pts):
+        return camera
+    v = camera.view()
+    d = pts - np.asarray(camera.target, dtype=float)
+    x, y, back = d @ v[0, :3], d @ v[1, :3], d @ v[2, :3]
+    half = margin * math.tan(math.radians(camera.fov_y) / 2.0)
+    # a point at depth (distance - back) is in view while |x| <= half * aspect * depth, |y| <= half * depth
+    need = float(max((back + np.abs(x) / (half * aspect)).max(), (back + np.abs(y) / half).max()))
+    if np.isfinite(need) and need > camera.distance:
+        camera.distance = need
+    return camera

@@ -39,18 +39,6 @@ def pack_vertices(pos: np.ndarray, normals: np.ndarray, tangents: np.ndarray, uv
     return out
 
 
-def grid_tangents(pos: np.ndarray, nw: int, nh: int) -> np.ndarray:
-    """Direction of increasing u (the width index) on a row-major grid, unit length."""
-    g = pos.reshape(nh, nw, 3)
-    t = np.empty_like(g)
-    t[:, 1:-1] = g[:, 2:] - g[:, :-2]
-    t[:, 0] = g[:, 1] - g[:, 0]
-    t[:, -1] = g[:, -1] - g[:, -2]
-    t = t.reshape(-1, 3)
-    length = np.linalg.norm(t, axis=1, keepdims=True)
-    return t / np.maximum(length, 1e-12)
-
-
 def sphere_mesh(center, radius: float, lat: int, lon: int) -> Mesh:
     """UV sphere with ``lat`` bands and ``lon`` segments; seams duplicated for the uvs."""
     lat, lon = max(2, int(lat)), max(3, int(lon))

@@ -1,41 +1,79 @@
-"""Glue between a Simulation and the Renderer: meshes, springs as lines, framing."""
+"""Glue between a Simulation and the Renderer: meshes, springs as lines, framing.
+
+Nothing here assumes a grid: the cloth mesh is every cloth's triangles (one
+draw call), its tangents come from the uvs (:mod:`.tangents`), the wireframe
+from the model's spring lists, the framing from the rest layout's boxes.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..simulation import Simulation
-from .camera import OrbitCamera, framing
-from .geometry import Mesh, grid_tangents, pack_vertices, plane_mesh, sphere_mesh
+from ..spring_mask import active_springs, enabled_kinds
+from .camera import OrbitCamera, fit_points, framing
+from .geometry import Mesh, pack_vertices, plane_mesh, sphere_mesh
 from .renderer import Renderer
+from .tangents import UvTangents
 
 SPHERE_DRAW_SCALE = 0.96
 
 
 def spring_lines(sim: Simulation) -> np.ndarray:
-    """Index pairs of the springs of the enabled kinds, int32 (L, 2)."""
+    """Index pairs of the springs that act (their kind enabled in their own
+    cloth's material), model point indices, int32 (L, 2)."""
     m = sim.model
-    keep = sim.params.enabled[m.spring_kind]
+    keep = active_springs(m, sim.params)
     return np.stack([m.spring_a[keep], m.spring_b[keep]], axis=1).astype(np.int32)
 
 
-def cloth_vertices(sim: Simulation, out: np.ndarray | None = None) -> np.ndarray:
-    m = sim.model
-    pos = sim.positions
-    return pack_vertices(pos, sim.normals, grid_tangents(pos, m.num_width_points, m.num_height_points),
-                         m.uvs, out)
+def cloth_tangents(sim: Simulation) -> UvTangents:
+    """The uv tangents of the simulation's mesh (every cloth)."""
+    return UvTangents(sim.model.uvs, sim.model.triangles)
+
+
+def cloth_vertices(sim: Simulation, out: np.ndarray | None = None,
+                   tangents: UvTangents | None = None) -> np.ndarray:
+    """Every cloth's packed vertices (see :mod:`.geometry`), float32 (N, 14);
+    ``tangents``: the mesh's :class:`UvTangents`, made afresh when None."""
+    tangents = tangents or cloth_tangents(sim)
+    pos, normals = sim.positions, sim.normals
+    return pack_vertices(pos, normals, tangents(pos, normals), sim.model.uvs, out)
 
 
 def cloth_mesh(sim: Simulation) -> Mesh:
     return Mesh(cloth_vertices(sim), np.asarray(sim.model.triangles), spring_lines(sim))
 
 
+def cloth_size(model, k: int) -> float:
+    """The largest side of cloth ``k``'s rest layout [m]: a grid's width or
+    height, a mesh's largest side of the box around its rest points."""
+    c = model.cloths[k]
+    if c.grid is not None:
+        return float(max(c.width, c.height))
+    rest = model.rest_positions[c.points]
+    return float(np.ptp(rest, axis=0).max()) if len(rest) else 0.0
+
+
+def drop_size(model) -> float:
+    """How far a cloth can hang below its start: the largest cloth's size [m]."""
+    return max((cloth_size(model, k) for k in range(len(model.cloths))), default=0.0)
+
+
+def layout_size(model) -> float:
+    """The size of the whole rest layout [m]: one cloth's own, or the box
+    around every cloth (the colliders' planes are drawn 2.5 of these wide)."""
+    if len(model.cloths) == 1:
+        return cloth_size(model, 0)
+    return max(model.size, drop_size(model))
+
+
 def reach_box(sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
-    """Where the cloth can be: its start box and 1.25 cloth sizes below it, cut
-    at floors, plus the spheres. Fixed per scene, so every frame and every run of a
-    sweep is framed alike."""
+    """Where the cloths can be: their start box and 1.25 cloth sizes (the
+    largest cloth's) below it, cut at floors, plus the spheres. Fixed per
+    scene, so every frame and every run of a sweep is framed alike."""
     rest = sim.model.rest_positions
-    size = max(sim.model.width, sim.model.height)
+    size = drop_size(sim.model)
     lo, hi = rest.min(axis=0).copy(), rest.max(axis=0).copy()
     lo[1] -= 1.25 * size
     for p in sim.planes:
@@ -48,7 +86,7 @@ def reach_box(sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
 
 
 def current_box(sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
-    """Box around the cloth as it is now and the spheres."""
+    """Box around the cloths as they are now and the spheres."""
     lo, hi = sim.positions.min(axis=0), sim.positions.max(axis=0)
     for s in sim.spheres:
         lo = np.minimum(lo, np.asarray(s.origin) - s.radius)
@@ -58,15 +96,27 @@ def current_box(sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
 
 def default_camera(sim: Simulation, fixed: bool = True) -> OrbitCamera:
     """Camera on the scene's reach box (``fixed``: same for every frame and run)
-    or tight on the cloth as it is now (for a single still image)."""
+    or tight on the cloths as they are now (for a single still image); moved
+    back where needed so that every cloth point (at rest when ``fixed``, else
+    now) and every sphere is in view of a square image (:func:`fit_points`)."""
     target, distance = framing(*(reach_box(sim) if fixed else current_box(sim)))
-    return OrbitCamera(target=target, distance=distance)
+    camera = OrbitCamera(target=target, distance=distance)
+    points = sim.model.rest_positions if fixed else sim.positions
+    return fit_points(camera, np.concatenate([points, _sphere_outlines(sim, camera)]))
+
+
+def _sphere_outlines(sim: Simulation, camera: OrbitCamera) -> np.ndarray:
+    """the four points of each sphere farthest along the camera's side and up axes, (4S, 3)"""
+    v = camera.view()
+    axes = np.array([v[0, :3], -v[0, :3], v[1, :3], -v[1, :3]])
+    out = [np.asarray(s.origin, float) + s.radius * axes for s in sim.spheres]
+    return np.concatenate(out) if out else np.empty((0, 3))
 
 
 def collider_meshes(sim: Simulation, sphere_res: tuple[int, int] = (40, 40)) -> list[Mesh]:
     lo, hi = reach_box(sim)
     center = (lo + hi) / 2.0
-    size = 2.5 * max(sim.model.width, sim.model.height)
+    size = 2.5 * layout_size(sim.model)
     # drawn a little smaller, as the course code does, so the cloth lying on a
     # sphere is not pierced by it between its vertices
     meshes = [sphere_mesh(s.origin, SPHERE_DRAW_SCALE * s.radius, *sphere_res) for s in sim.spheres]
@@ -84,8 +134,9 @@ class SimulationView:
 
     def attach(self, sim: Simulation) -> None:
         self.sim = sim
-        self._enabled = tuple(sim.params.enabled)
-        self._vertices = cloth_vertices(sim)
+        self._enabled = enabled_kinds(sim.params).tobytes()
+        self._tangents = cloth_tangents(sim)
+        self._vertices = cloth_vertices(sim, tangents=self._tangents)
         self.renderer.set_cloth(Mesh(self._vertices, np.asarray(sim.model.triangles), spring_lines(sim)))
         self.renderer.set_colliders(collider_meshes(sim, self.sphere_res))
 
@@ -98,8 +149,8 @@ class SimulationView:
 
     def sync(self) -> None:
         """Upload this frame's vertices; rebuild the spring lines only if a toggle changed."""
-        enabled = tuple(self.sim.params.enabled)
+        enabled = enabled_kinds(self.sim.params).tobytes()
         if enabled != self._enabled:
             self._enabled = enabled
             self.renderer.set_cloth_lines(spring_lines(self.sim))
-        self.renderer.update_cloth(cloth_vertices(self.sim, self._vertices))
+        self.renderer.update_cloth(cloth_vertices(self.sim, self._vertices, self._tangents))
