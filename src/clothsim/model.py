@@ -15,7 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .scene import ClothSpec, Scene
+from .mesh_cloth import mesh_cloth_parts
+from .scene import ClothSpec, MeshClothSpec, Scene
 
 STRUCTURAL, SHEARING, BENDING = 0, 1, 2
 SPRING_KINDS = ("structural", "shearing", "bending")
@@ -257,8 +258,28 @@ def build_scene_model(scene: Scene) -> Model:
                        cloth_names(scene))
 
 
-def _build_one(spec, seed: int) -> Model:
+def _build_one(spec: ClothSpec | MeshClothSpec, seed: int) -> Model:
+    if isinstance(spec, MeshClothSpec):
+        return build_mesh_model(spec)
     return build_model(spec, seed)
+
+
+def build_mesh_model(spec: MeshClothSpec) -> Model:
+    """The model of one mesh cloth (its parts from :func:`clothsim.mesh_cloth.mesh_cloth_parts`)."""
+    parts = mesh_cloth_parts(spec)
+    pairs = np.concatenate(parts.springs)
+    kind = np.concatenate([np.full(len(p), k, dtype=np.int8) for k, p in enumerate(parts.springs)])
+    pos = parts.positions.copy()
+    arrays = dict(rest_positions=pos, pinned=parts.pinned,
+                  spring_a=pairs[:, 0].astype(np.int32), spring_b=pairs[:, 1].astype(np.int32),
+                  spring_rest=np.linalg.norm(pos[pairs[:, 0]] - pos[pairs[:, 1]], axis=1), spring_kind=kind,
+                  kind_start=np.searchsorted(kind, np.arange(len(SPRING_KINDS) + 1)).astype(np.int64),
+                  triangles=parts.triangles.astype(np.int32), uvs=parts.uvs.astype(np.float32))
+    for arr in arrays.values():
+        arr.setflags(write=False)
+    cloth = Cloth(0, len(parts.positions), spec.thickness, parts.area, None, parts.width, parts.height,
+                  0, len(parts.triangles))
+    return Model(cloths=(cloth,), **arrays)
 
 
 def cloth_names(scene: Scene) -> list[str]:

@@ -16,8 +16,14 @@ from pathlib import Path
 from typing import Any
 
 from .errors import SceneError
+from .mesh_spec import MeshClothSpec, MeshTransform, is_mesh_cloth, parse_mesh_cloth
+from .scene_reader import Reader as _Reader
+from .scene_reader import Vec3
+from .scene_reader import as_list as _as_list
+from .scene_reader import describe as _describe
 
-Vec3 = tuple[float, float, float]
+__all__ = ["ClothSpec", "MeshClothSpec", "MeshTransform", "PlaneSpec", "Scene", "SimulationSpec", "SphereSpec",
+           "apply_overrides", "load_scene", "parse_scene", "read_scene_json"]
 
 
 @dataclass
@@ -76,8 +82,9 @@ class SimulationSpec:
 
 @dataclass
 class Scene:
-    cloths: list[ClothSpec]
-    """the cloths in scene order (the ``cloth`` key: one object or a list)"""
+    cloths: list[ClothSpec | MeshClothSpec]
+    """the cloths in scene order (the ``cloth`` key: one object or a list), each
+    a grid or (with the key ``mesh``) a mesh cloth"""
     spheres: list[SphereSpec] = field(default_factory=list)
     planes: list[PlaneSpec] = field(default_factory=list)
     simulation: SimulationSpec = field(default_factory=SimulationSpec)
@@ -85,7 +92,7 @@ class Scene:
     """where the scene came from, used in messages"""
 
     @property
-    def cloth(self) -> ClothSpec:
+    def cloth(self) -> ClothSpec | MeshClothSpec:
         """the first cloth (the only one of a CS184 scene)"""
         return self.cloths[0]
 
@@ -101,81 +108,12 @@ class Scene:
         return json.loads(json.dumps(out))
 
 
-def _cloth_dict(spec: ClothSpec) -> dict[str, Any]:
+def _cloth_dict(spec: ClothSpec | MeshClothSpec) -> dict[str, Any]:
+    if isinstance(spec, MeshClothSpec):
+        return spec.to_dict()
     cloth = asdict(spec)
     cloth["pinned"] = [list(p) for p in spec.pinned]
     return cloth
-
-
-# --------------------------------------------------------------------------
-# validation helpers: each takes the key path so messages can name it
-
-
-class _Reader:
-    def __init__(self, source: str | None) -> None:
-        self.source = source
-
-    def fail(self, key: str | None, message: str) -> SceneError:
-        return SceneError(self.source, key, message)
-
-    def obj(self, value: Any, key: str) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            raise self.fail(key, f"expected an object, got {_describe(value)}")
-        return value
-
-    def number(self, value: Any, key: str, *, lo: float | None = None, hi: float | None = None,
-               lo_open: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(key, f"expected a number, got {_describe(value)}")
-        value = float(value)
-        if lo is not None and (value < lo or (lo_open and value == lo)):
-            raise self.fail(key, f"expected a number {'>' if lo_open else '>='} {lo:g}"
-                                 f"{'' if hi is None else f' and <= {hi:g}'}, got {value:g}")
-        if hi is not None and value > hi:
-            raise self.fail(key, f"expected a number <= {hi:g}, got {value:g}")
-        return value
-
-    def integer(self, value: Any, key: str, *, lo: int | None = None) -> int:
-        if isinstance(value, float) and value.is_integer():
-            value = int(value)
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(key, f"expected an integer, got {_describe(value)}")
-        if lo is not None and value < lo:
-            raise self.fail(key, f"expected an integer >= {lo}, got {value}")
-        return value
-
-    def boolean(self, value: Any, key: str) -> bool:
-        if not isinstance(value, bool):
-            raise self.fail(key, f"expected true or false, got {_describe(value)}")
-        return value
-
-    def vec3(self, value: Any, key: str) -> Vec3:
-        if not isinstance(value, list) or len(value) != 3:
-            raise self.fail(key, f"expected a list of 3 numbers, got {_describe(value)}")
-        x, y, z = (self.number(v, f"{key}[{k}]") for k, v in enumerate(value))
-        return (x, y, z)
-
-    def keys(self, obj: dict[str, Any], key: str, allowed: set[str], required: tuple[str, ...]) -> None:
-        for name in obj:
-            if name not in allowed:
-                raise self.fail(f"{key}.{name}", f"unknown key; expected one of {', '.join(sorted(allowed))}")
-        for name in required:
-            if name not in obj:
-                raise self.fail(f"{key}.{name}", "missing required key")
-
-
-def _describe(value: Any) -> str:
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return f"the string {value!r}"
-    if isinstance(value, list):
-        return f"a list of {len(value)}"
-    if isinstance(value, dict):
-        return "an object"
-    return repr(value)
 
 
 _CLOTH_REQUIRED = ("width", "height", "num_width_points", "num_height_points", "thickness", "orientation")
@@ -184,11 +122,13 @@ _CLOTH_KEYS = set(_CLOTH_REQUIRED) | {"pinned", "damping", "density", "ks", "ena
 _TOP_KEYS = {"cloth", "sphere", "plane", "simulation"}
 
 
-def _parse_cloths(r: _Reader, raw: Any) -> list[ClothSpec]:
-    """``cloth``: one object, or (extension) a non-empty list of them."""
+def _parse_cloths(r: _Reader, raw: Any) -> list[ClothSpec | MeshClothSpec]:
+    """``cloth``: one object, or (extension) a non-empty list of them; an object
+    with the key ``mesh`` is a mesh cloth."""
     if isinstance(raw, list) and not raw:
         raise r.fail("cloth", "expected a cloth object or a non-empty list of them, got an empty list")
-    return [_parse_cloth(r, item, "cloth" + suffix) for suffix, item in _as_list(raw)]
+    return [parse_mesh_cloth(r, item, "cloth" + suffix) if is_mesh_cloth(item) else
+            _parse_cloth(r, item, "cloth" + suffix) for suffix, item in _as_list(raw)]
 
 
 def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
@@ -228,13 +168,6 @@ def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
         enable_shearing=r.boolean(c.get("enable_shearing", True), f"{key}.enable_shearing"),
         enable_bending=r.boolean(c.get("enable_bending", True), f"{key}.enable_bending"),
     )
-
-
-def _as_list(raw: Any) -> list[tuple[str, Any]]:
-    """A collider key holds one object or (extension) a list of them."""
-    if isinstance(raw, list):
-        return [(f"[{k}]", v) for k, v in enumerate(raw)]
-    return [("", raw)]
 
 
 def _parse_spheres(r: _Reader, raw: Any) -> list[SphereSpec]:

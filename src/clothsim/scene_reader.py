@@ -1,0 +1,86 @@
+"""Reading a scene's values: each check takes the key path so that its
+:class:`~clothsim.errors.SceneError` names it (``cloth[1].pinned[2]``)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from .errors import SceneError
+
+Vec3 = tuple[float, float, float]
+
+
+class Reader:
+    def __init__(self, source: str | None) -> None:
+        self.source = source
+
+    def fail(self, key: str | None, message: str) -> SceneError:
+        return SceneError(self.source, key, message)
+
+    def obj(self, value: Any, key: str) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(key, f"expected an object, got {describe(value)}")
+        return value
+
+    def number(self, value: Any, key: str, *, lo: float | None = None, hi: float | None = None,
+               lo_open: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self.fail(key, f"expected a number, got {describe(value)}")
+        value = float(value)
+        if lo is not None and (value < lo or (lo_open and value == lo)):
+            raise self.fail(key, f"expected a number {'>' if lo_open else '>='} {lo:g}"
+                                 f"{'' if hi is None else f' and <= {hi:g}'}, got {value:g}")
+        if hi is not None and value > hi:
+            raise self.fail(key, f"expected a number <= {hi:g}, got {value:g}")
+        return value
+
+    def integer(self, value: Any, key: str, *, lo: int | None = None) -> int:
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"expected an integer, got {describe(value)}")
+        if lo is not None and value < lo:
+            raise self.fail(key, f"expected an integer >= {lo}, got {value}")
+        return value
+
+    def boolean(self, value: Any, key: str) -> bool:
+        if not isinstance(value, bool):
+            raise self.fail(key, f"expected true or false, got {describe(value)}")
+        return value
+
+    def vec3(self, value: Any, key: str) -> Vec3:
+        if not isinstance(value, list) or len(value) != 3:
+            raise self.fail(key, f"expected a list of 3 numbers, got {describe(value)}")
+        x, y, z = (self.number(v, f"{key}[{k}]") for k, v in enumerate(value))
+        return (x, y, z)
+
+    def keys(self, obj: dict[str, Any], key: str, allowed: set[str], required: tuple[str, ...]) -> None:
+        for name in obj:
+            if name not in allowed:
+                raise self.fail(f"{key}.{name}", f"unknown key; expected one of {', '.join(sorted(allowed))}")
+        for name in required:
+            if name not in obj:
+                raise self.fail(f"{key}.{name}", "missing required key")
+
+
+def describe(value: Any) -> str:
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f"the string {value!r}"
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    if isinstance(value, dict):
+        return "an object"
+    return repr(value)
+
+
+def as_list(raw: Any) -> list[tuple[str, Any]]:
+    """A key that holds one object or (extension) a list of them: (key suffix, item) pairs,
+    the suffix ``""`` for a lone object and ``"[k]"`` for the k-th of a list."""
+    if isinstance(raw, list):
+        return [(f"[{k}]", v) for k, v in enumerate(raw)]
+    return [("", raw)]
