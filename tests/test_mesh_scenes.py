@@ -146,6 +146,18 @@ def test_flag_is_a_vertical_quad_strip():
     assert_oriented_manifold_disc(m)
 
 
+def test_shipped_flag_is_jittered_off_its_plane():
+    """the flag's vertices leave z=0 by a seeded amount within 1 mm (as CS184 does
+    for vertical cloth, so it can buckle), the rest of the layout unchanged"""
+    m = STANDARD_MESHES["flag.obj"]()
+    flat = quad_grid(columns=40, rows=20, width=1.0, height=0.5, vertical=True)
+    z = m.vertices[:, 2]
+    assert np.abs(z).max() <= 0.001 and z.std() > 0.0004 and len(np.unique(z)) == 800
+    np.testing.assert_array_equal(m.vertices[:, :2], flat.vertices[:, :2])
+    assert np.array_equal(m.faces, flat.faces)
+    assert np.all(face_normals(m.vertices, m.faces)[:, 2] > 0)
+
+
 def test_horizontal_sheet_faces_up_and_is_centred():
     m = quad_grid(columns=32, rows=32, width=0.8, height=0.8, vertical=False)
     assert np.allclose(m.vertices.min(axis=0), [-0.4, 0, -0.4]) and np.allclose(m.vertices.max(axis=0), [0.4, 0, 0.4])

@@ -140,12 +140,14 @@ def _dist(vertices: np.ndarray, a: int, b: int) -> float:
 
 
 def quad_grid(columns: int = 40, rows: int = 20, width: float = 1.0, height: float = 0.5,
-              vertical: bool = True) -> Mesh:
+              vertical: bool = True, jitter: float = 0.0, seed: int = 0) -> Mesh:
     """A ``width`` x ``height`` [m] sheet of (columns-1)(rows-1) quads, its
     vertices row-major (``columns`` a row). Vertical: in the z=0 plane, x in
     [0, width], y in [0, height], quads counter-clockwise seen from +z.
     Horizontal: in the y=0 plane centred on the origin, counter-clockwise seen
-    from +y."""
+    from +y. ``jitter`` [m] moves each vertex off the plane by a seeded uniform
+    amount in [-jitter, jitter], as CS184 does for a vertical grid, so that a
+    sheet hanging in its own plane can buckle out of it."""
     u = np.linspace(0.0, width, columns)
     v = np.linspace(0.0, height, rows)
     uu, vv = np.meshgrid(u, v)
@@ -154,6 +156,8 @@ def quad_grid(columns: int = 40, rows: int = 20, width: float = 1.0, height: flo
         vertices = np.stack([uu, vv, np.zeros_like(uu)], axis=1)
     else:
         vertices = np.stack([uu - width / 2, np.zeros_like(uu), vv - height / 2], axis=1)
+    if jitter:
+        vertices[:, 2 if vertical else 1] = np.random.default_rng(seed).uniform(-jitter, jitter, len(vertices))
     c = np.arange(columns - 1)
     r = np.arange(rows - 1)[:, None]
     a = (r * columns + c).ravel()
@@ -161,8 +165,9 @@ def quad_grid(columns: int = 40, rows: int = 20, width: float = 1.0, height: flo
     faces = orient(vertices, faces, FRONT if vertical else UP)
     uvs = np.stack([uu / width, vv / height], axis=1)
     kind = "vertical" if vertical else "horizontal"
+    extra = f", jitter={jitter:g}, seed={seed}" if jitter else ""
     return Mesh(vertices, faces, uvs, f"quad_grid(columns={columns}, rows={rows}, width={width:g}, "
-                                      f"height={height:g}, {kind})")
+                                      f"height={height:g}, {kind}{extra})")
 
 
 def poisson_points(count: int, side: float, spacing: float, seed: int) -> np.ndarray:
@@ -250,7 +255,7 @@ def write_obj(path: str | Path, mesh: Mesh) -> Path:
 
 STANDARD_MESHES = {
     "disc.obj": lambda: disc(radius=0.7, rings=25),
-    "flag.obj": lambda: quad_grid(columns=40, rows=20, width=1.0, height=0.5, vertical=True),
+    "flag.obj": lambda: quad_grid(columns=40, rows=20, width=1.0, height=0.5, vertical=True, jitter=0.001, seed=1),
     "sheet.obj": lambda: quad_grid(columns=32, rows=32, width=0.8, height=0.8, vertical=False),
     "delaunay_square.obj": lambda: delaunay_square(count=2500, side=1.0, spacing=0.014, seed=20),
 }
