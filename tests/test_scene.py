@@ -134,3 +134,63 @@ def test_scene_round_trips_through_dict():
     scene = load_scene(SCENES / "sphere.json")
     again = parse_scene(json.loads(json.dumps(scene.to_dict())))
     assert again.cloth == scene.cloth and again.spheres == scene.spheres
+
+
+# --------------------------------------------------------------------------
+# mesh cloths (extension): the keys; the meshes themselves in test_mesh_cloth.py
+
+QUAD_OBJ = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3 4\n"
+
+
+def test_grid_and_mesh_cloths_in_one_list(write_scene):
+    """a list of a grid and a mesh cloth: each its own kind and material, the mesh
+    with the CS184 material defaults; to_dict reloads to the same scene; --set reaches each"""
+    from clothsim.scene import ClothSpec, MeshClothSpec
+    path = write_scene({"cloth": [small_scene()["cloth"], {"mesh": "quad.obj", "thickness": 0.02}]})
+    (path.parent / "quad.obj").write_text(QUAD_OBJ)
+    scene = load_scene(path)
+    grid, mesh = scene.cloths
+    assert isinstance(grid, ClothSpec) and isinstance(mesh, MeshClothSpec)
+    assert (mesh.mesh, mesh.path, mesh.thickness) == ("quad.obj", str(path.parent / "quad.obj"), 0.02)
+    assert (mesh.damping, mesh.density, mesh.ks, mesh.pinned_vertices, mesh.pinned_region) == (0.2, 150, 5000, [], None)
+    assert mesh.enable_structural and mesh.enable_shearing and mesh.enable_bending
+    assert mesh.data.vertices.tolist() == [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]]
+    assert parse_scene(scene.to_dict(), str(path)) == scene
+    assert parse_scene(json.loads(json.dumps(scene.to_dict())), str(path)).cloths[1].data.faces.tolist() == [[0, 1, 2, 3]]
+    changed = load_scene(path, ["cloth[1].ks=42", "cloth[1].transform.scale=2"])
+    assert changed.cloths[1].ks == 42 and changed.cloths[0].ks == 5000
+    assert changed.cloths[1].data.vertices.max() == 2.0
+
+
+def test_mesh_path_without_a_scene_file_is_the_working_folders(tmp_path, monkeypatch):
+    (tmp_path / "quad.obj").write_text(QUAD_OBJ)
+    monkeypatch.chdir(tmp_path)
+    scene = parse_scene({"cloth": {"mesh": "quad.obj", "thickness": 0.01}})
+    assert scene.cloth.path == str(tmp_path / "quad.obj")
+    with pytest.raises(SceneError, match=r"^cloth.mesh: elsewhere.obj: no such file$"):
+        parse_scene({"cloth": {"mesh": "elsewhere.obj", "thickness": 0.01}})
+
+
+@pytest.mark.parametrize("cloth, key, expected", [
+    ({"mesh": "quad.obj"}, "cloth.thickness", "missing required key"),
+    ({"mesh": 3, "thickness": 0.01}, "cloth.mesh", "expected the name of a mesh file, got 3"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "orientation": 0}, "cloth.orientation", "has no grid keys"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "pinned": [[0, 0]]}, "cloth.pinned", "drop 'pinned' or 'mesh'"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "colour": 1}, "cloth.colour", "unknown key"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "ks": -1}, "cloth.ks", ">= 0"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "pinned_vertices": 3}, "cloth.pinned_vertices", "expected a list"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "pinned_vertices": [1.5]}, "cloth.pinned_vertices[0]",
+     "expected an integer"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "pinned_region": {"min": [0, 0, 0]}}, "cloth.pinned_region.max",
+     "missing required key"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "transform": {"rotate": [0, 90]}}, "cloth.transform.rotate",
+     "expected a list of 3 numbers"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "transform": {"scale": [1, -1, 1]}}, "cloth.transform.scale[1]",
+     "expected a number > 0"),
+])
+def test_bad_mesh_cloth_keys(write_scene, cloth, key, expected):
+    path = write_scene({"cloth": cloth})
+    (path.parent / "quad.obj").write_text(QUAD_OBJ)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    assert info.value.key == key and expected in str(info.value) and str(path) in str(info.value)
