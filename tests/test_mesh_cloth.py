@@ -402,3 +402,22 @@ def test_bad_mesh_through_the_command_line_process(tmp_path):
     assert r.returncode == 2
     assert r.stderr.splitlines() == [f"clothsim: error: {scene}: cloth.mesh: {tmp_path / 'fin.obj'}: non-manifold: "
                                      "the edge between vertices 0 and 1 is shared by 3 faces (at most 2)"]
+
+
+# --------------------------------------------------------------------------
+# a whole run
+
+
+def test_pinned2_quad_obj_rests_where_the_grid_does(pinned2_obj):
+    """2 s of the pinned2 grid and of its quad OBJ: mean heights within 1 cm (the
+    springs, masses and pins are the same; only the solver path differs)"""
+    from clothsim import Simulation
+    folder, _ = pinned2_obj
+    grid = Simulation(load_scene(SCENES / "pinned2.json"))
+    mesh = Simulation(load_scene(folder / "scene.json"))
+    assert mesh.model.cloth.grid is None
+    grid.run(2.0)
+    mesh.run(2.0)
+    assert np.array_equal(mesh.positions[[0, 49]], grid.positions[[0, 49]])  # the pins held
+    assert mesh.positions[:, 1].mean() < 0.6  # it fell
+    assert abs(mesh.positions[:, 1].mean() - grid.positions[:, 1].mean()) < 0.01
