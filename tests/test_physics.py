@@ -39,10 +39,15 @@ class SolverPath(NamedTuple):
     name: str
     threads: int
     """the parts each substep is cut into"""
+    solver: str = "auto"
+    """the solver's path: "auto" takes the grid's stencils on these grid scenes,
+    "mesh" the general spring lists that mesh cloths and several cloths take"""
 
 
-PATHS = ([SolverPath("portable", 1)] if PORTABLE else
-         [SolverPath("serial", 1), SolverPath("threads2", 2), SolverPath("threads3", 3)])
+PORTABLE_PATHS = [SolverPath("portable", 1), SolverPath("portable-mesh", 1, "mesh")]
+PATHS = (PORTABLE_PATHS if PORTABLE else
+         [SolverPath("serial", 1), SolverPath("threads2", 2), SolverPath("threads3", 3),
+          SolverPath("mesh", 1, "mesh"), SolverPath("mesh-threads2", 2, "mesh")])
 
 
 @pytest.fixture(params=PATHS, ids=[p.name for p in PATHS])
@@ -52,14 +57,14 @@ def path(request) -> SolverPath:
 
 def scene_sim(path: SolverPath, scene: str, overrides=()) -> Simulation:
     """a standard scene on this path"""
-    sim = Simulation.from_file(SCENES / scene, list(overrides), threads=path.threads)
-    assert sim.solver.parts == path.threads
+    sim = Simulation.from_file(SCENES / scene, list(overrides), threads=path.threads, solver_path=path.solver)
+    assert sim.solver.parts == path.threads and sim.solver.path == ("mesh" if path.solver == "mesh" else "grid")
     return sim
 
 
 def small_sim(path: SolverPath, **sections) -> Simulation:
     """the 16x16 scene of conftest on this path"""
-    sim = Simulation(parse_scene(small_scene(**sections)), threads=path.threads)
+    sim = Simulation(parse_scene(small_scene(**sections)), threads=path.threads, solver_path=path.solver)
     assert sim.solver.parts == path.threads
     return sim
 
@@ -92,13 +97,14 @@ def lowest(path: SolverPath, scene, overrides, seconds=2.0):
 
 
 def test_the_path_is_the_one_named(path):
-    """the run takes the parts it is named for, and the portable path appends the
-    neighbour list without AVX-512's compress"""
+    """the run takes the parts and the solver path it is named for, and the portable
+    path appends the neighbour list without AVX-512's compress"""
     from clothsim.solver.selfcollide.listbuild import COMPRESS
     sim = small_sim(path)
     assert sim.solver.parts == path.threads and sim.solver.lists.parts == path.threads
+    assert sim.solver.path == ("mesh" if path.solver == "mesh" else "grid")
     assert COMPRESS == has_compress()
-    if path.name == "portable":
+    if path.name.startswith("portable"):
         assert not COMPRESS
 
 
@@ -191,16 +197,22 @@ def test_provot_keeps_springs_near_110_percent(path):
 def stretch_without_provot(sim: Simulation) -> float:
     """largest stretch over one second of the same run with the Provot pass removed:
     the solver's own Verlet step (all spring kinds on, as in pinned2) and nothing else"""
+    from clothsim.solver import meshsprings
     from clothsim.solver.springs import force_buffer, integrate
 
     solver, n = sim.solver, sim.model.num_points
     knobs = solver.knobs(sim.params)
     P = np.ascontiguousarray(sim.positions.T)
     L = np.ascontiguousarray(sim.state.last_positions.T)
-    F = force_buffer(solver.springs, n)
+    mesh = solver.path == "mesh"
+    F = np.zeros((sim.model.num_springs, 3)) if mesh else force_buffer(solver.springs, n)
     worst = 0.0
     for step in range(90 * 30):
-        integrate(P, L, solver.points.free, knobs, solver.springs, F, 0, n, 0)
+        if mesh:
+            meshsprings.spring_forces(P, knobs, solver.springs, F, 0, len(F))
+            meshsprings.verlet_step(P, L, solver.points.free, knobs, solver.springs, F, 0, n)
+        else:
+            integrate(P, L, solver.points.free, knobs, solver.springs, F, 0, n, 0)
         if step % 30 == 29:
             sim.state.positions[:] = P.T
             worst = max(worst, stretch(sim).max())
@@ -325,7 +337,7 @@ def test_a_folding_cloth_keeps_its_invariants_and_follows_the_one_part_run(path)
     frames follows the one-part run to rounding (cut into parts for threads, the
     order of the self-collision and Provot sums differs, nothing else)"""
     overrides = ["cloth.num_width_points=30", "cloth.num_height_points=30", "cloth.pinned=[[0,0]]"]
-    one, split = scene_sim(SolverPath("serial", 1), "selfCollision.json", overrides), \
+    one, split = scene_sim(path._replace(threads=1), "selfCollision.json", overrides), \
         scene_sim(path, "selfCollision.json", overrides)
     pins = np.flatnonzero(split.model.pinned)
     start = split.positions[pins].copy()
@@ -391,4 +403,4 @@ def test_the_portable_path_keeps_every_physical_fact(request, tmp_path):
     run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", __file__],
                          env=env, capture_output=True, text=True, check=False, timeout=1800)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    assert f"{len(path_tests())} passed, 1 skipped" in run.stdout, run.stdout[-3000:]
+    assert f"{len(path_tests()) * len(PORTABLE_PATHS)} passed, 1 skipped" in run.stdout, run.stdout[-3000:]

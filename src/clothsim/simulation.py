@@ -80,6 +80,9 @@ class Simulation:
 
     scene: Scene
     threads: int | None = None
+    solver_path: str = "auto"
+    """the solver's path: "auto" (the grid's stencils for one grid cloth, else the
+    general spring lists), "grid" or "mesh" (the general path for any model)"""
     model: Model = field(init=False)
     params: Params = field(init=False)
     state: State = field(init=False)
@@ -95,12 +98,12 @@ class Simulation:
         self._normals: np.ndarray | None = None
         self._handle = -1
         self._handle_pos = np.zeros(3)
-        self.solver = ClothSolver(self.model, self.threads, (self.control, self.params))
+        self.solver = ClothSolver(self.model, self.threads, (self.control, self.params), self.solver_path)
 
     @classmethod
     def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-                  threads: int | None = None) -> Simulation:
-        return cls(load_scene(path, overrides), threads)
+                  threads: int | None = None, solver_path: str = "auto") -> Simulation:
+        return cls(load_scene(path, overrides), threads, solver_path)
 
     # ------------------------------------------------------------------ state
 

@@ -10,7 +10,9 @@ from ..params import Params
 from ..state import State
 from . import prewarm
 from .colliders import KINDS
-from .groups import Control, Knobs, Points, Scratch
+from .groups import Control, Knobs, MeshKnobs, Points, Scratch
+from .meshsprings import build_mesh_springs
+from .meshstep import advance_mesh, advance_mesh_parallel
 from .selfcollide import NeighbourList, near_stencil, skin_factor
 from .shared import BLOCK
 from .springs import SET_KIND, build_stencil, force_buffer
@@ -23,6 +25,10 @@ RUNAWAY_FACTOR = 100.0
 BUILD_VARIANT = "build"
 """the warm marker of the kernels a solver compiles when it is made (the list
 build checks the rest layout: see :func:`~.selfcollide.nearstencil.grid_metric`)"""
+
+
+PATHS = ("auto", "grid", "mesh")
+"""the solver's paths: the grid's stencils, the general spring lists, or the first that fits"""
 
 
 def build_compiled() -> bool:
@@ -41,47 +47,78 @@ class ClothSolver:
     order of the Provot corrections and of the self-collision sums), not on
     the machine.
 
-    Today the solver takes a model of one grid cloth: the grid's strides are
-    what its spring, Provot and near-stencil kernels walk.
+    Two paths: a model of one grid cloth takes the grid's strides (the
+    spring, Provot and near-stencil kernels of :mod:`.springs`, :mod:`.provot`,
+    :mod:`.selfcollide.nearstencil`); any other model (mesh cloths, several
+    cloths) the spring lists of :mod:`.meshsprings`, each cloth with its own
+    material. Both share the colliders and self-collision.
     """
 
     def __init__(self, model: Model, threads: int | None = None,
-                 first: tuple[Control, Params] | None = None) -> None:
+                 first: tuple[Control, Params] | None = None, path: str = "auto") -> None:
         """``first``: the control and params of the first step, where known. If
         its kernels are not in the cache yet, a second process starts
-        compiling them at once (see :mod:`.prewarm`), while this one builds."""
-        self.model = model
-        self.parts = parts_for(model.num_points, threads)
-        self._warm: set[str] = set()
-        self.unsupported = len(model.cloths) != 1 or model.cloths[0].grid is None
-        if self.unsupported:  # the general path is on its way: until then such a model cannot step
-            self.runaway2 = np.inf
-            return
-        cloth = model.cloths[0]
-        rows, cols = cloth.grid
+        compiling them at once (see :mod:`.prewarm`), while this one builds.
+        ``path``: "grid" (a model of one grid cloth only), "mesh" (any model)
+        or "auto", the grid path where the model allows it."""
+        grid = len(model.cloths) == 1 and model.cloths[0].grid is not None
+        if path not in PATHS:
+            raise ValueError(f"path must be one of {', '.join(PATHS)}, not {path!r}")
+        if path == "grid" and not grid:
+            raise ValueError("the grid path takes a model of one grid cloth")
+        self.path = "grid" if path == "auto" and grid else "mesh" if path == "auto" else path
         n = model.num_points
         self.model = model
         self.parts = parts_for(n, threads)
         self._warm: set[str] = set()
-        if first is not None and not self.is_compiled(*first):
-            prewarm.start(self.variant(*first))
-        self.springs = build_stencil(model.rest_positions, model.pinned, rows, cols)
-        size = max(cloth.width, cloth.height)
+        if self.path == "grid":
+            self._build_grid(first)
+        else:
+            self._build_mesh()
+        self.scratch = Scratch(P=np.zeros((3, n)), L=np.zeros((3, n)), F=self._forces,
+                               masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64))
+        kernel_cache.mark_warm(BUILD_VARIANT)
+
+    def _points(self, size: float) -> None:
+        model = self.model
+        # pairs of different cloths keep the larger thickness apart: one reach for the whole list
+        thickness = max(c.thickness for c in model.cloths)
         self.points = Points(rest=model.rest_positions, free=(~model.pinned).astype(np.float64),
-                             thickness=float(cloth.thickness), center=model.rest_positions.mean(axis=0),
+                             thickness=float(thickness), center=model.rest_positions.mean(axis=0),
                              span=2.0 * RUNAWAY_FACTOR * size)
         self.runaway2 = (RUNAWAY_FACTOR * size) ** 2
         """squared distance from the start past which a point means the run blew up [m²]"""
-        self.scratch = Scratch(P=np.zeros((3, n)), L=np.zeros((3, n)), F=force_buffer(self.springs, n),
-                               masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64))
+
+    def _build_grid(self, first) -> None:
+        """The grid path: the springs as stencils, the near stencil of self-collision."""
+        model, n = self.model, self.model.num_points
+        cloth = model.cloths[0]
+        rows, cols = cloth.grid
+        if first is not None and not self.is_compiled(*first):
+            prewarm.start(self.variant(*first))
+        self.springs = build_stencil(model.rest_positions, model.pinned, rows, cols)
+        self._points(max(cloth.width, cloth.height))
+        self._forces = force_buffer(self.springs, n)
         skin = skin_factor(model.rest_positions, rows, cols, cloth.thickness)
         near = near_stencil(model.rest_positions, rows, cols, cloth.thickness, skin)
         self.lists = NeighbourList.allocate(n, cols, near, self.parts, skin)
-        kernel_cache.mark_warm(BUILD_VARIANT)
         self._advance = advance if self.parts == 1 else advance_parallel
 
-    def knobs(self, params: Params) -> Knobs:
+    def _build_mesh(self) -> None:
+        """The general path: springs as lists, every pair of self-collision through the list."""
+        model, n = self.model, self.model.num_points
+        self.springs = build_mesh_springs(model, self.parts)
+        self._points(max(model.size, 1e-9))
+        self._forces = np.zeros((model.num_springs, 3))
+        self.lists = NeighbourList.allocate(n, None, None, self.parts)
+        starts = [c.start for c in model.cloths] + [n]
+        self._cloth_sizes = np.diff(starts)
+        self._advance = advance_mesh if self.parts == 1 else advance_mesh_parallel
+
+    def knobs(self, params: Params) -> Knobs | MeshKnobs:
         """The kernels' view of the live parameters."""
+        if self.path == "mesh":
+            return self._mesh_knobs(params)
         material = params.cloths[0]
         k = material.ks / self.model.cloths[0].point_mass(material.density)
         enabled = material.enabled
@@ -91,11 +128,26 @@ class ClothSolver:
                      simulation_steps=int(params.simulation_steps),
                      self_collision=bool(params.self_collision))
 
+    def _mesh_knobs(self, params: Params) -> MeshKnobs:
+        cloths, materials = self.model.cloths, params.cloths
+        if len(materials) != len(cloths):
+            raise ValueError(f"params hold {len(materials)} materials for {len(cloths)} cloths")
+        k = np.array([[m.ks / c.point_mass(m.density)] * 2 + [0.2 * m.ks / c.point_mass(m.density)]
+                      for c, m in zip(cloths, materials)])
+        enabled = np.array([m.enabled for m in materials])
+        keep = np.repeat(np.array([1.0 - m.damping / 100.0 for m in materials]), self._cloth_sizes)
+        return MeshKnobs(gravity=np.asarray(params.gravity, dtype=np.float64),
+                         k_over_m=(k * enabled).ravel(), enabled=enabled.ravel(), keep=keep,
+                         dt2=params.dt * params.dt, simulation_steps=int(params.simulation_steps),
+                         self_collision=bool(params.self_collision))
+
     def variant(self, control: Control, params: Params) -> str:
         """The name of the compiled specialization a step with these takes: serial
         or parallel, and the collider kinds the scene has (each compiles only
         where present, see :mod:`.colliders`)."""
         parts = ["serial" if self.parts == 1 else "parallel"]
+        if self.path == "mesh":
+            parts = ["mesh-" + parts[0]]
         parts += [name for name in KINDS if getattr(control, name) is not None]
         return "+".join(parts)
 
@@ -109,8 +161,6 @@ class ClothSolver:
     def step(self, state: State, control: Control, params: Params, substeps: int) -> float:
         """Advance ``state`` by ``substeps`` substeps of ``params.dt`` in place; returns the
         largest squared distance of a point from the start [m²] (inf when not finite)."""
-        if self.unsupported:
-            raise ValueError("the solver steps a model of one grid cloth only")
         far2, pairs = self._advance(state.positions, state.last_positions, self.points, self.springs,
                                     self.knobs(params), control, self.lists, self.lists.pairs, self.scratch,
                                     substeps)

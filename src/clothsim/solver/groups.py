@@ -53,6 +53,28 @@ class Knobs(NamedTuple):
     variant compiled apart: the viewer turns it live)"""
 
 
+class MeshKnobs(NamedTuple):
+    """The live parameters as the general path's kernels take them (see
+    :mod:`.meshsprings`): per spring set (3 x cloth + kind) and per point, as
+    every cloth has its own material."""
+
+    gravity: np.ndarray
+    """[m/s²], float64 (3,)"""
+    k_over_m: np.ndarray
+    """each set's spring constant over its cloth's point mass [1/s²], 0 where the
+    kind is off, float64 (3 x cloths,)"""
+    enabled: np.ndarray
+    """which sets the Provot pass takes, bool (3 x cloths,)"""
+    keep: np.ndarray
+    """the share of velocity a substep keeps, 1 - damping of the point's cloth, float64 (N,)"""
+    dt2: float
+    """the substep squared [s²]"""
+    simulation_steps: int
+    """substeps per frame: a self-collision push is divided by it"""
+    self_collision: bool
+    """whether pairs closer than twice the thickness push apart"""
+
+
 class Control(NamedTuple):
     """What the world imposes from outside, read every substep and changed between frames."""
 

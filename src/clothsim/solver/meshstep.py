@@ -1,0 +1,65 @@
+"""One frame of substeps of the general path (spring lists), in a single compiled call."""
+
+from __future__ import annotations
+
+from numba import njit, prange
+
+from .colliders import collide
+from .meshsprings import provot, spring_forces, verlet_step
+from .selfcollide import self_collide
+from .shared import part_range
+from .step import ADVANCE_OPTIONS, _farthest, _from_planes, _hold, _renamed, _to_planes
+
+
+def _advance_mesh(positions, last_positions, points, springs, knobs, control, lists, pairs, scratch, substeps):
+    """Run ``substeps`` substeps on ``positions``/``last_positions`` (N, 3) [m] in place,
+    for a model of any cloths: the general path's twin of :func:`~.step._advance`,
+    with the same groups but ``springs`` a :class:`~.meshsprings.MeshSprings`,
+    ``knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (S, 3).
+
+    Returns (largest squared distance of a point from ``points.center``, inf
+    when not finite; the neighbour list's pairs array).
+
+    Order per substep, as in the CS184 course code: forces and Verlet,
+    self-collision, the colliders, then the Provot pass. Cut into the parts
+    of ``springs.part_start``: the forces by ranges of springs, the Verlet
+    step, the colliders and each part's own Provot springs by ranges of
+    points, the springs across parts last, on one thread. Compiled twice, as
+    :func:`advance_mesh` (parts one after another) and
+    :func:`advance_mesh_parallel` (parts on threads).
+    """
+    P, L, F = scratch.P, scratch.L, scratch.F
+    free, center = points.free, points.center
+    handle, handle_pos = control.handle, control.handle_pos
+    enabled, simulation_steps, self_collision = knobs.enabled, knobs.simulation_steps, knobs.self_collision
+    part_start = springs.part_start
+    parts = part_start.shape[0] - 2
+    _to_planes(positions, P)
+    _to_planes(last_positions, L)
+    n = P.shape[1]
+    num_springs = F.shape[0]
+    for _ in range(substeps):
+        for t in prange(parts):
+            s0, s1 = part_range(num_springs, parts, t)
+            spring_forces(P, knobs, springs, F, s0, s1)
+        for t in prange(parts):
+            lo, hi = part_range(n, parts, t)
+            verlet_step(P, L, free, knobs, springs, F, lo, hi)
+        if handle >= 0:
+            _hold(P, handle, handle_pos)
+        if self_collision:
+            pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
+        for t in prange(parts):
+            lo, hi = part_range(n, parts, t)
+            collide(P, L, free, control, lo, hi)
+            provot(P, springs, enabled, part_start[t], part_start[t + 1])
+        provot(P, springs, enabled, part_start[parts], part_start[parts + 1])
+        if handle >= 0:
+            _hold(P, handle, handle_pos)
+    _from_planes(P, positions)
+    _from_planes(L, last_positions)
+    return _farthest(P, center), pairs
+
+
+advance_mesh = njit(**ADVANCE_OPTIONS)(_renamed(_advance_mesh, "advance_mesh"))
+advance_mesh_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(_renamed(_advance_mesh, "advance_mesh_parallel"))
