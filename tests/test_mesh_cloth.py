@@ -421,3 +421,23 @@ def test_pinned2_quad_obj_rests_where_the_grid_does(pinned2_obj):
     assert np.array_equal(mesh.positions[[0, 49]], grid.positions[[0, 49]])  # the pins held
     assert mesh.positions[:, 1].mean() < 0.6  # it fell
     assert abs(mesh.positions[:, 1].mean() - grid.positions[:, 1].mean()) < 0.01
+
+
+def test_non_finite_vertex_is_a_scene_error(tmp_path):
+    scene = _bad_scene(tmp_path, "nan.obj", "v 0 0 0\nv 1 0 nan\nv 0 0 1\nf 1 2 3\n", {})
+    with pytest.raises(SceneError, match=r"nan.obj: vertex 1 is not at a finite position$"):
+        load_scene(scene)
+
+
+def test_welded_point_takes_the_uv_of_a_vertex_a_face_names(tmp_path, capsys):
+    """vertex 0 is in no face but at the place of vertex 4, which a face names with
+    its uv: the welded point has vertex 4's uv"""
+    text = ("v 1 0 0\nv 0 0 0\nv 1 0 1\nv 0 0 1\nv 1 0 0\n"
+            "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+            "f 2/1 5/2 3/3 4/4\n")
+    scene = _bad_scene(tmp_path, "uv.obj", text, {"pinned_vertices": [0]})
+    m = build_scene_model(load_scene(scene))
+    assert m.num_points == 4 and "1 vertex welded" in capsys.readouterr().err
+    np.testing.assert_array_equal(m.rest_positions, [[1, 0, 0], [0, 0, 0], [1, 0, 1], [0, 0, 1]])
+    np.testing.assert_array_equal(m.uvs, [[1, 0], [0, 0], [1, 1], [0, 1]])
+    assert np.flatnonzero(m.pinned).tolist() == [0]

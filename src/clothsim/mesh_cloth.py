@@ -117,15 +117,18 @@ def mesh_springs(pos: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
     structural = _unique_pairs(edges)
     q = faces[quad]
     shearing = _unique_pairs(np.concatenate([q[:, [0, 2]], q[:, [1, 3]]]))
-    rows = _row_bending(pos, faces, np.unique(edges[quad[edge_face]], axis=0))
+    rows = _row_bending(pos, faces, _unique_pairs(edges[quad[edge_face]]))
     across = _across_triangles(faces[~quad])
     return structural, shearing, _unique_pairs(np.concatenate([rows, across]))
 
 
 def _unique_pairs(pairs: np.ndarray) -> np.ndarray:
+    """int64 (S, 2): each unordered pair once, smaller index first, sorted; no (a, a)."""
     pairs = np.sort(pairs.reshape(-1, 2).astype(np.int64), axis=1)
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]
-    return np.unique(pairs, axis=0).reshape(-1, 2)
+    n = int(pairs.max()) + 1 if len(pairs) else 1
+    keys = np.unique(pairs[:, 0] * n + pairs[:, 1])
+    return np.stack([keys // n, keys % n], axis=1)
 
 
 def _corners(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

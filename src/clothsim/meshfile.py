@@ -135,8 +135,6 @@ def _read_obj(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     v = np.array(verts, dtype=np.float64).reshape(-1, 3)
     f = np.array(faces, dtype=np.int64).reshape(-1, 4)
     t = np.array(corner_uv, dtype=np.int64).reshape(-1, 4)
-    if not np.isfinite(v).all():
-        raise MeshFileError("a vertex position is not a finite number")
     uvs = None
     corners = f >= 0
     if len(f) and (t[corners] >= 0).all():
@@ -192,6 +190,8 @@ def load_mesh(path: str | Path, transform=None) -> MeshData:
     v, f, uvs = read_polygons(path)
     if len(f) == 0:
         raise MeshFileError("the file holds no faces")
+    if not np.isfinite(v).all():
+        raise MeshFileError(f"vertex {int(np.argmax(~np.isfinite(v).all(axis=1)))} is not at a finite position")
     corners = f >= 0
     fs = np.sort(np.where(corners, f, -1 - np.arange(4)), axis=1)
     repeated = (fs[:, 1:] == fs[:, :-1]).any(axis=1)
@@ -208,10 +208,12 @@ def load_mesh(path: str | Path, transform=None) -> MeshData:
     num_unused = int(np.count_nonzero(compact[file_to_point] < 0))
     file_to_point = compact[file_to_point]
     faces = np.where(corners, compact[np.where(corners, faces, 0)], -1)
+    # each point's first file vertex that a face names (its position and uv)
+    named = np.zeros(len(v), dtype=bool)
+    named[f[corners]] = True
     first = np.full(used.sum(), -1, dtype=np.int64)
-    order = np.arange(len(v))[::-1]
-    keep = file_to_point[order] >= 0
-    first[file_to_point[order][keep]] = order[keep]
+    order = np.flatnonzero(named)[::-1]
+    first[file_to_point[order]] = order
     points = v[first]
     point_uvs = None if uvs is None else uvs[first].astype(np.float32)
     if transform is not None:
@@ -233,7 +235,7 @@ def _weld(v: np.ndarray) -> tuple[np.ndarray, int]:
     """The welded index of each vertex (first occurrence first) and how many were welded."""
     size = float(np.linalg.norm(np.ptp(v, axis=0))) if len(v) else 0.0
     tol = WELD_TOLERANCE * size if size > 0 else 1.0
-    keys = np.round(v / tol).astype(np.int64)
+    keys = np.round((v - v.min(axis=0)) / tol).astype(np.int64)
     _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
     rank = np.empty(len(first), dtype=np.int64)
@@ -285,10 +287,11 @@ def face_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _check_manifold(faces: np.ndarray, point_to_file: np.ndarray) -> None:
     edges, _ = face_edges(faces)
-    uniq, counts = np.unique(edges, axis=0, return_counts=True)
+    n = int(faces.max()) + 1
+    keys, counts = np.unique(edges[:, 0] * n + edges[:, 1], return_counts=True)
     if (counts > 2).any():
         k = int(np.argmax(counts > 2))
-        a, b = point_to_file[uniq[k]]
+        a, b = point_to_file[[keys[k] // n, keys[k] % n]]
         raise MeshFileError(f"non-manifold: the edge between vertices {a} and {b} is shared by "
                             f"{counts[k]} faces (at most 2)")
 
