@@ -209,8 +209,8 @@ def stretch_without_provot(sim: Simulation) -> float:
     worst = 0.0
     for step in range(90 * 30):
         if mesh:
-            meshsprings.spring_forces(P, knobs, solver.springs, F, 0, len(F))
-            meshsprings.verlet_step(P, L, solver.points.free, knobs, solver.springs, F, 0, n)
+            meshsprings.mesh_spring_forces(P, knobs, solver.springs, F, 0, len(F))
+            meshsprings.mesh_verlet(P, L, solver.points.free, knobs, solver.springs, F, 0, n)
         else:
             integrate(P, L, solver.points.free, knobs, solver.springs, F, 0, n, 0)
         if step % 30 == 29:

@@ -8,13 +8,13 @@ indices, so its loads are gathers, not strides.
 A substep here is three passes, each cut into ranges that threads may share
 with no two writing one value:
 
-1. :func:`spring_forces` writes each spring's force over the point mass into
+1. :func:`mesh_spring_forces` writes each spring's force over the point mass into
    ``F`` (S, 3), a range of springs per part;
-2. :func:`verlet_step` has each point of a range gather its springs' forces
+2. :func:`mesh_verlet` has each point of a range gather its springs' forces
    through the incidence lists (``first``/``spring``/``sign``: the CSR of the
    springs at each point) and take its Verlet step; gathering, rather than
    adding into both ends of every spring, lets points be split among threads;
-3. :func:`provot` shortens the springs over their limit, one after another
+3. :func:`mesh_provot` shortens the springs over their limit, one after another
    (Gauss-Seidel, as the CS184 course code does), springs with both ends in
    a part's points by that part, the springs across parts afterwards.
 
@@ -105,12 +105,12 @@ def _owner(p: np.ndarray, n: int, parts: int) -> np.ndarray:
 
 
 @njit(**KERNEL_OPTIONS)
-def spring_forces(P, knobs, springs, F, lo, hi):
+def mesh_spring_forces(P, mesh_knobs, mesh_springs, F, lo, hi):
     """The force over the point mass of springs ``lo:hi`` [m/s²] into ``F`` (S, 3):
     Hooke's law along the spring, pulling its first end toward its second
-    (``knobs.k_over_m[set]``, 0 where the kind is off or the cloth's ks is)."""
-    a, b, rest, sets = springs.a, springs.b, springs.rest, springs.set
-    k_over_m = knobs.k_over_m
+    (``mesh_knobs.k_over_m[set]``, 0 where the kind is off or the cloth's ks is)."""
+    a, b, rest, sets = mesh_springs.a, mesh_springs.b, mesh_springs.rest, mesh_springs.set
+    k_over_m = mesh_knobs.k_over_m
     x, y, z = P[0], P[1], P[2]
     for s in range(lo, hi):
         i, j = a[s], b[s]
@@ -124,12 +124,12 @@ def spring_forces(P, knobs, springs, F, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def verlet_step(P, L, free, knobs, springs, F, lo, hi):
+def mesh_verlet(P, L, free, mesh_knobs, mesh_springs, F, lo, hi):
     """Points ``lo:hi`` gather their springs' forces from ``F`` and take their
     Verlet step, ``x' = x + keep*(x - x_prev) + a dt²`` where ``free`` is 1,
-    ``a`` gravity plus the springs, ``keep`` the point's cloth's (``knobs.keep`` (N,))."""
-    gravity, keep, dt2 = knobs.gravity, knobs.keep, knobs.dt2
-    first, spring, sign = springs.first, springs.spring, springs.sign
+    ``a`` gravity plus the springs, ``keep`` the point's cloth's (``mesh_knobs.keep`` (N,))."""
+    gravity, keep, dt2 = mesh_knobs.gravity, mesh_knobs.keep, mesh_knobs.dt2
+    first, spring, sign = mesh_springs.first, mesh_springs.spring, mesh_springs.sign
     gx, gy, gz = gravity[0], gravity[1], gravity[2]
     for q in range(lo, hi):
         ax, ay, az = gx, gy, gz
@@ -147,10 +147,11 @@ def verlet_step(P, L, free, knobs, springs, F, lo, hi):
 
 
 @njit(**KERNEL_OPTIONS)
-def provot(P, springs, enabled, lo, hi):
+def mesh_provot(P, mesh_springs, enabled, lo, hi):
     """Shorten springs ``lo:hi`` longer than their limit (MAX_STRETCH x rest) back to
     it, one after another, where ``enabled[set]``; a pinned end does not move."""
-    a, b, limit2, sets, share = springs.a, springs.b, springs.limit2, springs.set, springs.share
+    a, b, limit2 = mesh_springs.a, mesh_springs.b, mesh_springs.limit2
+    sets, share = mesh_springs.set, mesh_springs.share
     for s in range(lo, hi):
         i, j = a[s], b[s]
         dx = P[0, j] - P[0, i]

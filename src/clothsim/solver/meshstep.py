@@ -5,24 +5,25 @@ from __future__ import annotations
 from numba import njit, prange
 
 from .colliders import collide
-from .meshsprings import provot, spring_forces, verlet_step
+from .meshsprings import mesh_provot, mesh_spring_forces, mesh_verlet
 from .selfcollide import self_collide
 from .shared import part_range
 from .step import ADVANCE_OPTIONS, _farthest, _from_planes, _hold, _renamed, _to_planes
 
 
-def _advance_mesh(positions, last_positions, points, springs, knobs, control, lists, pairs, scratch, substeps):
+def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, control, lists, pairs, scratch,
+                  substeps):
     """Run ``substeps`` substeps on ``positions``/``last_positions`` (N, 3) [m] in place,
     for a model of any cloths: the general path's twin of :func:`~.step._advance`,
-    with the same groups but ``springs`` a :class:`~.meshsprings.MeshSprings`,
-    ``knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (S, 3).
+    with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`,
+    ``mesh_knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (S, 3).
 
     Returns (largest squared distance of a point from ``points.center``, inf
     when not finite; the neighbour list's pairs array).
 
     Order per substep, as in the CS184 course code: forces and Verlet,
     self-collision, the colliders, then the Provot pass. Cut into the parts
-    of ``springs.part_start``: the forces by ranges of springs, the Verlet
+    of ``mesh_springs.part_start``: the forces by ranges of springs, the Verlet
     step, the colliders and each part's own Provot springs by ranges of
     points, the springs across parts last, on one thread. Compiled twice, as
     :func:`advance_mesh` (parts one after another) and
@@ -31,8 +32,9 @@ def _advance_mesh(positions, last_positions, points, springs, knobs, control, li
     P, L, F = scratch.P, scratch.L, scratch.F
     free, center = points.free, points.center
     handle, handle_pos = control.handle, control.handle_pos
-    enabled, simulation_steps, self_collision = knobs.enabled, knobs.simulation_steps, knobs.self_collision
-    part_start = springs.part_start
+    enabled, simulation_steps = mesh_knobs.enabled, mesh_knobs.simulation_steps
+    self_collision = mesh_knobs.self_collision
+    part_start = mesh_springs.part_start
     parts = part_start.shape[0] - 2
     _to_planes(positions, P)
     _to_planes(last_positions, L)
@@ -41,10 +43,10 @@ def _advance_mesh(positions, last_positions, points, springs, knobs, control, li
     for _ in range(substeps):
         for t in prange(parts):
             s0, s1 = part_range(num_springs, parts, t)
-            spring_forces(P, knobs, springs, F, s0, s1)
+            mesh_spring_forces(P, mesh_knobs, mesh_springs, F, s0, s1)
         for t in prange(parts):
             lo, hi = part_range(n, parts, t)
-            verlet_step(P, L, free, knobs, springs, F, lo, hi)
+            mesh_verlet(P, L, free, mesh_knobs, mesh_springs, F, lo, hi)
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if self_collision:
@@ -52,8 +54,8 @@ def _advance_mesh(positions, last_positions, points, springs, knobs, control, li
         for t in prange(parts):
             lo, hi = part_range(n, parts, t)
             collide(P, L, free, control, lo, hi)
-            provot(P, springs, enabled, part_start[t], part_start[t + 1])
-        provot(P, springs, enabled, part_start[parts], part_start[parts + 1])
+            mesh_provot(P, mesh_springs, enabled, part_start[t], part_start[t + 1])
+        mesh_provot(P, mesh_springs, enabled, part_start[parts], part_start[parts + 1])
         if handle >= 0:
             _hold(P, handle, handle_pos)
     _from_planes(P, positions)
