@@ -1,7 +1,8 @@
 """A cloth made from a mesh file, as a scene names it (``shared/scene-format.md``,
 "Cloth from a mesh").
 
-The mesh is loaded while the scene is parsed (:func:`parse_mesh_cloth`), so
+numpy and the mesh readers load only when a scene has a mesh cloth (the
+command line's ``--help`` loads no numpy). The mesh is loaded while the scene is parsed (:func:`parse_mesh_cloth`), so
 that a missing, unreadable, empty, degenerate or non-manifold mesh and a pin
 outside it are scene errors at load, naming the scene file, the key and the
 mesh file; the spec then holds the checked mesh (:class:`MeshData`) after its
@@ -14,12 +15,14 @@ import math
 import os
 import sys
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from .meshfile import MeshData, MeshFileError, load_mesh
 from .scene_reader import Reader, Vec3, describe
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .meshfile import MeshData
 
 GRID_KEYS = ("width", "height", "num_width_points", "num_height_points", "orientation", "pinned")
 MATERIAL_DEFAULTS: dict[str, Any] = {"damping": 0.2, "density": 150.0, "ks": 5000.0, "enable_structural": True,
@@ -40,6 +43,8 @@ class MeshTransform:
 
     def matrix(self) -> np.ndarray:
         """The linear part, float64 (3, 3): ``Rz @ Ry @ Rx @ S``."""
+        import numpy as np
+
         ax, ay, az = (math.radians(a) for a in self.rotate)
         cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
         rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
@@ -49,6 +54,8 @@ class MeshTransform:
 
     def apply(self, points: np.ndarray) -> np.ndarray:
         """float64 (N, 3) positions [file units] to scene positions [m]."""
+        import numpy as np
+
         return np.asarray(points, dtype=np.float64) @ self.matrix().T + np.asarray(self.translate)
 
     def to_dict(self) -> dict[str, Any]:
@@ -103,6 +110,11 @@ def is_mesh_cloth(raw: Any) -> bool:
 
 def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
     """Validate the mesh cloth ``c`` at key path ``key`` and load its mesh."""
+    from .meshfile import (  # numpy only for scenes that have a mesh
+        MeshFileError,
+        load_mesh,
+    )
+
     for name in c:
         if name in GRID_KEYS:
             raise r.fail(f"{key}.{name}", "a mesh cloth (one with 'mesh') has no grid keys; "
