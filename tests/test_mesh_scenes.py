@@ -14,7 +14,7 @@ from clothsim.procedural import (STANDARD_MESHES, Mesh, delaunay_square, disc, f
                                  morton_order, obj_text, poisson_points, quad_grid, write_obj,
                                  write_standard_meshes)
 
-from .conftest import ROOT
+from .conftest import ROOT, SCENES
 
 
 def read_obj(path) -> tuple[np.ndarray, list[list[int]], np.ndarray]:
@@ -242,3 +242,156 @@ def test_package_data_carries_the_meshes():
     package = ROOT / "src" / "clothsim"
     carried = {p.name for g in globs for p in package.glob(g) if p.parent.name == "meshes"}
     assert carried == set(STANDARD_MESHES)
+
+
+# ------------------------------------------------------------ the scenes
+
+
+SPHERE_CENTRE, SPHERE_RADIUS = np.array([0.5, 0.2, 0.5]), 0.2
+MESH_SCENES = {"tablecloth": 1951, "flag": 800, "drape": 2500, "two_cloths": 1600 + 1024}
+
+
+def test_mesh_scenes_are_standard_scenes_of_their_meshes():
+    """each mesh scene names a shipped mesh relative to itself; the sphere ones
+    use sphere.json's sphere; two_cloths holds a soft grid and a stiff mesh"""
+    from clothsim import load_scene
+    from clothsim.standard_scenes import names, scene_path
+
+    assert set(MESH_SCENES) <= set(names())
+    sphere = load_scene(scene_path("sphere")).spheres[0]
+    for name in ("tablecloth", "drape"):
+        s = load_scene(scene_path(name)).spheres
+        assert len(s) == 1 and (s[0].origin, s[0].radius) == (sphere.origin, sphere.radius)
+        assert (s[0].origin, s[0].radius) == (tuple(SPHERE_CENTRE), SPHERE_RADIUS)
+    meshes = {c.mesh for n in MESH_SCENES for c in load_scene(scene_path(n)).cloths if hasattr(c, "mesh")}
+    assert meshes == {f"meshes/{m}" for m in STANDARD_MESHES}
+    two = load_scene(scene_path("two_cloths"))
+    assert [c.ks for c in two.cloths] == [500.0, 5000.0] and not hasattr(two.cloths[0], "mesh")
+
+
+@pytest.mark.parametrize("name", sorted(MESH_SCENES))
+def test_mesh_scene_loads_and_runs(name):
+    """a few frames of each mesh scene: every point present, finite, the free
+    ones fallen, the pinned ones exactly where they were"""
+    from clothsim import Simulation
+
+    sim = Simulation.from_file(SCENES / f"{name}.json")
+    assert sim.positions.shape == (MESH_SCENES[name], 3)
+    start = sim.positions.copy()
+    pinned = sim.model.pinned
+    assert pinned.sum() == (20 if name == "flag" else 0)
+    sim.run(0.1)
+    p = sim.positions
+    assert np.isfinite(p).all()
+    assert np.array_equal(p[pinned], start[pinned])
+    fall = start[~pinned, 1] - p[~pinned, 1]
+    assert np.median(fall) > 0.02  # 0.1 s of gravity: about 5 cm for a free point
+
+
+def test_flag_hangs_from_its_pole():
+    """pinned along its short edge x=0 (the 20 points of column 0), the flag
+    hangs: its free edge swings down and in towards the pole, the pole unmoved"""
+    from clothsim import Simulation
+
+    sim = Simulation.from_file(SCENES / "flag.json")
+    start = sim.positions.copy()
+    pole = sim.model.pinned
+    assert np.array_equal(np.nonzero(pole)[0], np.arange(0, 800, 40))
+    np.testing.assert_allclose(start[pole, 0], 0, atol=1e-12)
+    np.testing.assert_allclose(start[pole, 1], 1.2 + np.arange(20) / 38, atol=1e-6)
+    sim.run(1.0)
+    p = sim.positions
+    assert np.array_equal(p[pole], start[pole])
+    free_edge = np.arange(39, 800, 40)
+    assert p[free_edge, 1].mean() < start[free_edge, 1].mean() - 0.3
+    assert p[free_edge, 0].max() < 0.9
+
+
+@pytest.fixture(scope="module")
+def tablecloth():
+    """tablecloth.json after 2 s (it lands at 0.25 s and is still by 1 s), and
+    where it was 0.1 s before"""
+    from clothsim import Simulation
+
+    sim = Simulation.from_file(SCENES / "tablecloth.json")
+    sim.run(1.9)
+    before = sim.positions.copy()
+    sim.run(0.1)
+    return sim, before
+
+
+def test_tablecloth_rests_on_the_sphere_and_hangs_below_its_equator(tablecloth):
+    """no point inside the sphere; the top of the cloth on the sphere's top;
+    the hem hanging below the equator all round; still and centred"""
+    sim, before = tablecloth
+    p = sim.positions
+    d = np.linalg.norm(p - SPHERE_CENTRE, axis=1)
+    assert d.min() >= SPHERE_RADIUS - 1e-3
+    assert p[:, 1].max() == pytest.approx(SPHERE_CENTRE[1] + SPHERE_RADIUS, abs=0.01)
+    assert p[:, 1].min() < SPHERE_CENTRE[1] - 0.2
+    # the hem: the 150 rim points (they started at 0.7 m from the axis), all below the equator
+    start = sim.model.rest_positions
+    rim = np.hypot(start[:, 0] - 0.5, start[:, 2] - 0.5) > 0.7 - 1e-6
+    assert rim.sum() == 150 and np.all(p[rim, 1] < SPHERE_CENTRE[1])
+    assert np.abs(p[:, [0, 2]].mean(axis=0) - SPHERE_CENTRE[[0, 2]]).max() < 0.01
+    # still: in its last 0.1 s the points moved about 2 mm on average, the hem
+    # swaying (while it fell they moved 10-20 cm in 0.1 s)
+    assert np.linalg.norm(p - before, axis=1).mean() < 0.004
+    assert abs(p[:, 1].min() - before[:, 1].min()) < 0.002
+
+
+def test_two_cloths_never_interpenetrate(tmp_path):
+    """two_cloths for 2 s: at every frame no point of one cloth within the
+    thickness of a point of the other; at the end the stiff sheet lies on the
+    soft one (in contact, and above it wherever it is over it)"""
+    from scipy.spatial import cKDTree
+
+    from clothsim import Simulation
+
+    sim = Simulation.from_file(SCENES / "two_cloths.json")
+    thickness = sim.model.cloths[0].thickness
+    assert thickness == sim.model.cloths[1].thickness == 0.0095
+    assert [c.params.ks for c in sim.cloths] == [500.0, 5000.0]
+    closest = []
+
+    def gap(*_):
+        a, b = sim.cloths[0].positions, sim.cloths[1].positions
+        closest.append(cKDTree(a).query(b)[0].min())
+
+    sim.run(2.0, on_frame=gap)
+    assert len(closest) == 180
+    assert min(closest) >= thickness
+    assert closest[-1] < 3 * thickness  # they touch: the test is not vacuous
+    lower, upper = sim.cloths[0].positions, sim.cloths[1].positions
+    assert lower[:, 1].max() < 0.01  # the soft cloth lies on the plane
+    # over it: within the lower cloth's spacing of one of its points, seen from above
+    dist, nearest = cKDTree(lower[:, [0, 2]]).query(upper[:, [0, 2]])
+    over = dist < 0.5 / 39
+    assert over.sum() > 500
+    assert np.all(upper[over, 1] > lower[nearest[over], 1] + thickness)
+
+
+def test_tablecloth_seen_from_above_is_round(tmp_path):
+    """the Phong image of the disc before it falls, from straight above: the
+    cloth's pixels fill pi/4 of their bounding square (a square cloth fills all
+    of it, a hexagon 0.75), and its outline is at one distance from its centre"""
+    from PIL import Image
+
+    from clothsim.cli import main
+    from clothsim.render.renderer import BACKGROUND
+
+    out = tmp_path / "top.png"
+    assert main(["render", str(SCENES / "tablecloth.json"), "-o", str(out), "--seconds", "0",
+                 "--size", "200x200", "--camera", "0,90,3", "--no-progress"]) == 0
+    img = np.asarray(Image.open(out).convert("RGB")).astype(float)
+    cloth = np.abs(img - np.array(BACKGROUND) * 255).sum(axis=2) > 12
+    rows, cols = np.nonzero(cloth)
+    h, w = np.ptp(rows) + 1, np.ptp(cols) + 1
+    assert h > 120 and abs(h - w) <= 2 and not cloth[[0, -1]].any() and not cloth[:, [0, -1]].any()
+    assert cloth.sum() / (h * w) == pytest.approx(np.pi / 4, rel=0.02)
+    # the outline: cloth pixels with a background neighbour
+    edge = cloth & ~(np.roll(cloth, 1, 0) & np.roll(cloth, -1, 0) & np.roll(cloth, 1, 1) & np.roll(cloth, -1, 1))
+    er, ec = np.nonzero(edge)
+    r = np.hypot(er - rows.mean(), ec - cols.mean())
+    assert r.std() / r.mean() < 0.01
+    assert img[cloth][:, 0].mean() > 2 * img[cloth][:, 2].mean()  # cloth-coloured (red), lit

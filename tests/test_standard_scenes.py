@@ -14,18 +14,25 @@ from clothsim.standard_scenes import find_scene, names, scene_path, scenes_dir
 
 from .conftest import ROOT, SCENES, small_scene
 
-STANDARD = ["pinned2", "pinned4", "plane", "selfCollision", "sphere"]
+GRID = ["pinned2", "pinned4", "plane", "selfCollision", "sphere"]
+"""the CS184 scenes: one 50x50 grid cloth each"""
+MESH = ["drape", "flag", "tablecloth", "two_cloths"]
+"""clothsim's scenes of mesh cloths and of several cloths (tests/test_mesh_scenes.py)"""
+STANDARD = sorted(GRID + MESH, key=str.lower)
 
 
-def test_five_scenes_inside_the_package():
-    """the five standard scenes are files of the installed package, and each one loads"""
+def test_standard_scenes_inside_the_package():
+    """the standard scenes are files of the installed package, and each one loads:
+    the CS184 ones a 50x50 grid, the others at least one mesh cloth"""
     import clothsim
 
     assert names() == STANDARD
     assert scenes_dir().resolve() == (Path(clothsim.__file__).resolve().parent / "scenes")
-    for name in STANDARD:
+    for name in GRID:
         scene = load_scene(scene_path(name))
         assert scene.cloth.num_width_points == 50 and scene.cloth.num_height_points == 50
+    for name in MESH:
+        assert any(hasattr(c, "mesh") for c in load_scene(scene_path(name)).cloths)
 
 
 def test_package_data_matches_the_scenes():
@@ -104,6 +111,12 @@ def test_scenes_command_lists_each_with_a_description(capsys):
     assert described["pinned4"].endswith("pinned at 4 corners")
     assert described["sphere"].endswith("falls onto a sphere")
     assert described["selfCollision"].startswith("50×50 vertical cloth") and "plane" in described["selfCollision"]
+    assert described["tablecloth"] == "1951-point triangle mesh disc.obj, 1.5 m², horizontal, falls onto a sphere"
+    assert described["flag"] == "800-point quad mesh flag.obj, 0.5 m², vertical, pinned at 20 points, hangs above a plane"
+    assert described["drape"].startswith("2500-point triangle mesh delaunay_square.obj, 1 m²")
+    assert described["two_cloths"] == ("2 cloths: 40×40 horizontal cloth, 1×1 m, ks 500; "
+                                       "1024-point quad mesh sheet.obj, 0.64 m², horizontal, ks 5000; "
+                                       "fall onto a plane")
 
 
 def test_sweep_by_name(tmp_path, monkeypatch, capsys):

@@ -14,8 +14,35 @@ def add_parser(sub) -> None:
 
 
 def describe(scene) -> str:
-    """One line saying what a scene holds, read from the scene itself."""
-    cloth = scene.cloth
+    """One line saying what a scene holds, read from the scene itself: its
+    cloth (a grid or a mesh) or each of its cloths, and what they fall onto."""
+    cloths = scene.cloths
+    texts = [_describe_cloth(c) for c in cloths]
+    if len(cloths) == 1:
+        head, sep, verb = texts[0], ", ", "falls"
+    else:
+        if len({c.ks for c in cloths}) > 1:
+            texts = [f"{t}, ks {c.ks:g}" for t, c in zip(texts, cloths)]
+        head, sep, verb = f"{len(cloths)} cloths: " + "; ".join(texts), "; ", "fall"
+    colliders = [_count(len(scene.spheres), "sphere"), _count(len(scene.planes), "plane")]
+    colliders = [c for c in colliders if c]
+    if colliders and all(_pinned_count(c) for c in cloths):
+        tail = ("hangs" if len(cloths) == 1 else "hang") + " above " + " and ".join(colliders)
+    elif colliders:
+        tail = f"{verb} onto " + " and ".join(colliders)
+    elif not any(_pinned_count(c) for c in cloths):
+        tail = f"{verb} freely"
+    else:
+        tail = ""
+    text = head + sep + tail if tail else head
+    if not scene.simulation.self_collision:
+        text += ", no self-collision"
+    return text
+
+
+def _describe_cloth(cloth) -> str:
+    if getattr(cloth, "mesh", None) is not None:
+        return _describe_mesh(cloth)
     nw, nh = cloth.num_width_points, cloth.num_height_points
     text = (f"{nw}×{nh} {'vertical' if cloth.orientation == 1 else 'horizontal'} cloth, "
             f"{cloth.width:g}×{cloth.height:g} m")
@@ -24,15 +51,39 @@ def describe(scene) -> str:
     if pinned:
         what = "corner" if pinned <= corners else "point"
         text += f", pinned at {len(pinned)} {what}{'s' if len(pinned) > 1 else ''}"
-    colliders = [_count(len(scene.spheres), "sphere"), _count(len(scene.planes), "plane")]
-    colliders = [c for c in colliders if c]
-    if colliders:
-        text += ", falls onto " + " and ".join(colliders)
-    elif not pinned:
-        text += ", falls freely"
-    if not scene.simulation.self_collision:
-        text += ", no self-collision"
     return text
+
+
+def _describe_mesh(cloth) -> str:
+    """``1951-point triangle mesh disc.obj, 1.54 m², horizontal``: points after the
+    weld, the kind of faces, the file's name, the rest area, and its plane when
+    it is flat along a coordinate axis (thinner than 1 % of its size)."""
+    from pathlib import PurePath
+
+    import numpy as np
+
+    from ..mesh_cloth import mesh_cloth_parts
+
+    parts = mesh_cloth_parts(cloth)
+    quads = cloth.data.is_quad
+    kind = "quad" if quads.all() else "triangle" if not quads.any() else "quad and triangle"
+    text = f"{len(parts.positions)}-point {kind} mesh {PurePath(cloth.mesh).name}, {parts.area:.2g} m²"
+    extent = np.ptp(parts.positions, axis=0)
+    thin = int(np.argmin(extent))
+    if extent[thin] < 0.01 * extent.max():
+        text += ", horizontal" if thin == 1 else ", vertical"
+    n = _pinned_count(cloth)
+    if n:
+        text += f", pinned at {n} point{'s' if n > 1 else ''}"
+    return text
+
+
+def _pinned_count(cloth) -> int:
+    if getattr(cloth, "mesh", None) is None:
+        return len({tuple(p) for p in cloth.pinned})
+    from ..mesh_cloth import pinned_points
+
+    return int(pinned_points(cloth).sum())
 
 
 def _count(n: int, noun: str) -> str:
