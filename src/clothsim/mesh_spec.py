@@ -110,10 +110,8 @@ def is_mesh_cloth(raw: Any) -> bool:
 
 def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
     """Validate the mesh cloth ``c`` at key path ``key`` and load its mesh."""
-    from .meshfile import (  # numpy only for scenes that have a mesh
-        MeshFileError,
-        load_mesh,
-    )
+    # here, not at the top: numpy only for a scene that has a mesh
+    from .meshfile import MeshFileError, load_mesh
 
     for name in c:
         if name in GRID_KEYS:
