@@ -340,6 +340,23 @@ def test_tablecloth_rests_on_the_sphere_and_hangs_below_its_equator(tablecloth):
     assert abs(p[:, 1].min() - before[:, 1].min()) < 0.002
 
 
+def test_drape_lies_over_the_sphere():
+    """the Delaunay sheet after 1.5 s: no point inside the sphere, its middle on
+    the sphere's top, its four corners (turned 30°) hanging below the equator"""
+    from clothsim import Simulation
+
+    sim = Simulation.from_file(SCENES / "drape.json")
+    rest = sim.model.rest_positions
+    reach = np.hypot(rest[:, 0] - 0.5, rest[:, 2] - 0.5)
+    corners = np.argsort(reach)[-4:]  # the points farthest from the sphere's axis
+    np.testing.assert_allclose(reach[corners], np.sqrt(0.5), atol=1e-6)
+    sim.run(1.5)
+    p = sim.positions
+    assert np.linalg.norm(p - SPHERE_CENTRE, axis=1).min() >= SPHERE_RADIUS - 1e-3
+    assert p[:, 1].max() == pytest.approx(SPHERE_CENTRE[1] + SPHERE_RADIUS, abs=0.01)
+    assert np.all(p[corners, 1] < SPHERE_CENTRE[1] - 0.1)
+
+
 def test_two_cloths_never_interpenetrate(tmp_path):
     """two_cloths for 2 s: at every frame no point of one cloth within the
     thickness of a point of the other; at the end the stiff sheet lies on the
