@@ -16,7 +16,8 @@ import clothsim
 from clothsim import Simulation
 from clothsim.export import obj_text, write_obj
 from clothsim.export import objtext
-from clothsim.export.obj import ObjSequence, obj_bytes
+from clothsim.export.obj import obj_bytes
+from clothsim.export.objseq import ObjSequence
 
 from .conftest import small_scene
 
@@ -334,7 +335,7 @@ def test_obj_sequence_into_a_vanished_folder_raises(scene, tmp_path, background)
 
 def test_obj_sequence_left_open_is_written_at_exit(scene, tmp_path):
     """a run that stops without close() (say, on a SimulationError) keeps its frames"""
-    code = ("import sys\nfrom clothsim import Simulation\nfrom clothsim.export.obj import ObjSequence\n"
+    code = ("import sys\nfrom clothsim import Simulation\nfrom clothsim.export.objseq import ObjSequence\n"
             f"sim = Simulation.from_file({str(scene)!r})\n"
             f"seq = ObjSequence({str(tmp_path / 'seq')!r}, sim.model.uvs, sim.model.triangles)\n"
             "for k in range(30):\n    seq.write(k, sim.positions, sim.normals)\n    sim.step()\n"
@@ -343,3 +344,57 @@ def test_obj_sequence_left_open_is_written_at_exit(scene, tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 3, r.stderr
     assert sorted(os.listdir(tmp_path / "seq")) == [f"frame_{k:04d}.obj" for k in range(30)]
+
+
+# ------------------------------------------------------------------ several cloths, mesh cloths
+
+
+def test_trajectory_keeps_the_cloths_and_their_ranges():
+    """a trajectory of a disc and a grid names both cloths with their point and
+    triangle ranges; one made by hand without them is one cloth of everything"""
+    from clothsim.trajectory import Trajectory, TrajectoryRecorder
+
+    from .handmade import disc_and_grid, simulation_of
+
+    sim = simulation_of(disc_and_grid())
+    traj = TrajectoryRecorder(sim).trajectory(sim)
+    assert [(c.name, c.start, c.stop, c.tri_start, c.tri_stop) for c in traj.parts] == [
+        ("disc", 0, 217, 0, 384), ("grid", 217, 473, 384, 834)]
+    bare = Trajectory(traj.positions, traj.times, traj.triangles, traj.uvs, 90.0)
+    (whole,) = bare.parts
+    assert (whole.name, whole.start, whole.stop, whole.tri_start, whole.tri_stop) == ("cloth", 0, 473, 0, 834)
+
+
+def test_obj_sequence_writes_one_object_per_cloth(tmp_path):
+    """ObjSequence with objects, in the background and not: the same bytes as
+    obj_bytes with those objects, an o line before each cloth's faces"""
+    from clothsim.export.obj import model_objects
+
+    from .handmade import disc_and_grid, simulation_of
+
+    sim = simulation_of(disc_and_grid())
+    objects = model_objects(sim.model)
+    assert objects == (("disc", 0, 384), ("grid", 384, 834))
+    expected = obj_bytes(sim.positions, sim.normals, sim.model.uvs, sim.model.triangles, objects)
+    for background in (True, False):
+        folder = tmp_path / str(background)
+        folder.mkdir()
+        with ObjSequence(folder, sim.model.uvs, sim.model.triangles, background=background, objects=objects) as seq:
+            seq.write(0, sim.positions)
+        assert (folder / "frame_0000.obj").read_bytes() == expected
+    lines = expected.decode().splitlines()
+    o_at = [k for k, line in enumerate(lines) if line.startswith("o ")]
+    assert [lines[k] for k in o_at] == ["o disc", "o grid"]
+    assert o_at[1] - o_at[0] == 384 + 1 and len(lines) - o_at[1] == 450 + 1
+    assert not any(line.startswith(("v", "vt", "vn")) for line in lines[o_at[0]:])  # vertices first
+
+
+def test_obj_objects_must_cover_the_triangles_in_order():
+    from clothsim.export.obj import MeshText
+
+    uv, tri = np.zeros((4, 2)), np.array([[0, 1, 2], [1, 3, 2]])
+    with pytest.raises(ValueError, match="follow each other"):
+        MeshText(uv, tri, (("a", 0, 1),))
+    with pytest.raises(ValueError, match="follow each other"):
+        MeshText(uv, tri, (("a", 1, 2), ("b", 0, 1)))
+    assert MeshText(uv, tri, (("a b", 0, 1), ("c", 1, 2))).faces.decode().splitlines()[::2] == ["o a_b", "o c"]

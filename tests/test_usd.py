@@ -307,3 +307,76 @@ def test_read_only_folder_one_line(tmp_path):
     assert lines[0].startswith("clothsim: error: ") and "cannot write in" in lines[0]
     assert "compiling" not in r.stderr
     assert list(folder.iterdir()) == []
+
+
+# ---------------------------------------------------------------------------
+# several cloths, a mesh cloth
+
+
+@pytest.fixture(scope="module")
+def two_meshes(tmp_path_factory):
+    """a hand-made disc (no grid) and a grid cloth, fed frame by frame to
+    FrameRecorder's USD export (positions moved by hand: a wave of 6 frames)"""
+    from .handmade import disc_and_grid, simulation_of
+
+    out = tmp_path_factory.mktemp("usd2") / "two.usda"
+    sim = simulation_of(disc_and_grid(), sphere={"origin": [2.0, 0.0, 0.5], "radius": 0.3, "friction": 0.2})
+    recorder = FrameRecorder(sim, outputs={"usd": str(out)})
+    rest = sim.positions.copy()
+    frames = [rest.copy()]
+    for k in range(1, 6):
+        sim.state.positions[:] = rest + 0.05 * np.sin(rest[:, :1] * 3 + k)[:, [0, 0, 0]] * [0.0, 1.0, 0.2]
+        sim.state.frame, sim.state.time, sim._normals = k, k / 90, None
+        recorder(sim)
+        frames.append(sim.positions.copy())
+    recorder.finish(sim)
+    return out, sim, np.stack(frames)
+
+
+def test_one_mesh_prim_per_cloth_animated(two_meshes):
+    """/World/Cloths/disc and /World/Cloths/grid (no /World/Cloth): each its own
+    faces in its own indices, its uvs, and its points and normals at every frame"""
+    out, sim, positions = two_meshes
+    stage = Usd.Stage.Open(str(out))
+    assert not stage.GetPrimAtPath("/World/Cloth")
+    assert [p.GetName() for p in stage.GetPrimAtPath("/World/Cloths").GetChildren()] == ["disc", "grid"]
+    for cloth in sim.cloths:
+        mesh = UsdGeom.Mesh(stage.GetPrimAtPath(f"/World/Cloths/{cloth.name}"))
+        assert mesh
+        prim = mesh.GetPrim()
+        assert prim.GetAttribute("clothsim:name").Get() == cloth.name
+        assert prim.GetAttribute("clothsim:firstPoint").Get() == cloth.model.start
+        np.testing.assert_array_equal(np.asarray(mesh.GetFaceVertexIndicesAttr().Get()).reshape(-1, 3),
+                                      cloth.triangles)
+        assert set(np.asarray(mesh.GetFaceVertexCountsAttr().Get()).tolist()) == {3}
+        st = np.asarray(UsdGeom.PrimvarsAPI(mesh).GetPrimvar("st").Get())
+        np.testing.assert_array_equal(st, sim.model.uvs[cloth.model.points])
+        points, normals = mesh.GetPointsAttr(), mesh.GetNormalsAttr()
+        assert points.GetTimeSamples() == [float(k) for k in range(len(positions))]
+        for k in range(len(positions)):
+            mine = positions[k][cloth.model.points]
+            np.testing.assert_allclose(np.asarray(points.Get(k)), mine, rtol=0, atol=1e-6)
+            expected = compute_normals(positions[k], sim.model.triangles)[cloth.model.points]
+            np.testing.assert_allclose(np.asarray(normals.Get(k)), expected, atol=1e-6)
+            lo, hi = np.asarray(mesh.GetExtentAttr().Get(k))
+            np.testing.assert_allclose(lo, mine.min(axis=0), atol=1e-6)
+            np.testing.assert_allclose(hi, mine.max(axis=0), atol=1e-6)
+    assert UsdGeom.Sphere(stage.GetPrimAtPath("/World/Colliders/Sphere_0"))
+
+
+def test_several_cloths_pass_usd_validators(two_meshes):
+    validation = pytest.importorskip("pxr.UsdValidation")
+    from pxr import UsdPhysics, UsdShade, UsdSkel  # noqa: F401  (registers their validators)
+
+    out, _, _ = two_meshes
+    validators = validation.ValidationRegistry().GetOrLoadAllValidators()
+    errors = validation.ValidationContext(validators).Validate(Usd.Stage.Open(str(out)))
+    assert [e.GetMessage() for e in errors] == []
+
+
+def test_cloth_prim_names_are_valid_and_unique():
+    from clothsim.export.usd import cloth_prim_paths
+
+    assert cloth_prim_paths(["cloth"]) == ["/World/Cloth"]
+    assert cloth_prim_paths(["cloth_0", "my flag", "my flag", "3d"]) == [
+        "/World/Cloths/cloth_0", "/World/Cloths/my_flag", "/World/Cloths/my_flag_1", "/World/Cloths/_d"]

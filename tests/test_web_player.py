@@ -314,3 +314,54 @@ def test_browser_screenshots_show_the_cloth_moving(sphere_page, tmp_path):
     assert grey[100:550].mean() > 0.01  # the sphere (the text above it and the bar below left out)
     background = np.abs(first - np.array(BACKGROUND) * 255).sum(axis=2) < 6
     assert background.mean() > 0.5
+
+
+# ---------------------------------------------------------------------------
+# several cloths, a mesh cloth
+
+
+@pytest.fixture(scope="module")
+def two_cloth_page(tmp_path_factory):
+    """the player of a hand-made disc (no grid) beside a grid cloth, two frames
+    (the second lifted 0.1 m), in green"""
+    from .handmade import disc_and_grid, simulation_of
+
+    sim = simulation_of(disc_and_grid())
+    frames = TrajectoryRecorder(sim)
+    sim.state.positions[:, 1] += 0.1
+    sim.state.time = 1 / 90
+    frames(sim)
+    traj = frames.trajectory(sim)
+    out = tmp_path_factory.mktemp("web2") / "two.html"
+    web.write_player(out, traj, color=GREEN)
+    return out, sim, traj
+
+
+def test_player_holds_every_cloth(two_cloth_page):
+    """the page's frames are every cloth's points in scene order, its triangles
+    the mesh's own, and meta.cloths each cloth's name and ranges"""
+    out, sim, traj = two_cloth_page
+    got = web.read_player(out.read_text())
+    assert got["meta"]["cloths"] == [
+        {"name": c.name, "start": c.model.start, "stop": c.model.stop, "tri_start": c.model.tri_start,
+         "tri_stop": c.model.tri_stop} for c in sim.cloths]
+    assert [c["name"] for c in got["meta"]["cloths"]] == ["disc", "grid"]
+    np.testing.assert_array_equal(got["triangles"], sim.model.triangles)
+    assert np.abs(got["positions"] - traj.positions).max() <= max(got["meta"]["step"]) / 2 + 1e-12
+
+
+@needs_chromium
+def test_browser_shows_both_cloths(two_cloth_page, tmp_path):
+    """in chromium the page draws two separate patches of the cloth colour, the
+    disc's round one beside the grid's"""
+    from scipy import ndimage
+
+    out, _, _ = two_cloth_page
+    assert state(out, "#frame=0", tmp_path)["state"] == "ready"
+    img = screenshot(out, "frame=0", tmp_path)
+    green = shades_of(img, GREEN)
+    labels, count = ndimage.label(green)
+    sizes = ndimage.sum(green, labels, range(1, count + 1))
+    big = np.flatnonzero(sizes > 0.02 * green.size)
+    assert len(big) == 2, sorted(sizes)[-4:]
+    assert green[:, :5].sum() == 0 and green[:, -5:].sum() == 0  # both in view

@@ -11,17 +11,28 @@ from pathlib import Path
 
 import numpy as np
 
-from .export.obj import ObjSequence
+from .export.obj import model_objects
+from .export.objseq import ObjSequence
 from .outputs import OutputError, atomic_path, check_writable
 from .simulation import Simulation
 from .trajectory import Trajectory, TrajectoryRecorder
 
 
+def npz_arrays(traj: Trajectory) -> dict[str, np.ndarray]:
+    """The arrays of the NumPy export (see :class:`FrameRecorder`)."""
+    parts = traj.parts
+    return dict(positions=traj.positions, times=traj.times, triangles=traj.triangles, uvs=traj.uvs,
+                scene=np.array(json.dumps(traj.scene)),
+                cloth_names=np.array([c.name for c in parts], dtype=str),
+                cloth_start=np.array([c.start for c in parts] + [parts[-1].stop], dtype=np.int64),
+                cloth_triangle_start=np.array([c.tri_start for c in parts] + [parts[-1].tri_stop],
+                                              dtype=np.int64))
+
+
 def _write_npz(path: Path, traj: Trajectory) -> None:
     buf = io.BytesIO()
     # uncompressed: deflate shrank float positions by a sixth and took longer than the run
-    np.savez(buf, positions=traj.positions, times=traj.times, triangles=traj.triangles,
-                        uvs=traj.uvs, scene=np.array(json.dumps(traj.scene)))
+    np.savez(buf, **npz_arrays(traj))
     path.write_bytes(buf.getvalue())
 
 
@@ -78,9 +89,14 @@ class FrameRecorder:
 
     ``sequence_dir`` gets ``frame_0000.obj`` (the start) onward. ``outputs`` maps
     a whole-run format of :data:`WRITERS` to its path: ``npz`` gets
-    ``positions[frame, point, 3]`` (frame 0 is the start), ``times``,
-    ``triangles``, ``uvs`` and the scene as JSON text; ``usd`` a time-sampled
-    USD stage; ``html`` a self-contained web player. Every path is checked
+    ``positions[frame, point, 3]`` [m] (frame 0 is the start; every cloth's
+    points in scene order), ``times`` [s], ``triangles`` (model point
+    indices), ``uvs``, the scene as JSON text (``scene``) and the cloths:
+    ``cloth_names`` (K,), ``cloth_start`` (K+1,: cloth k's points are
+    ``cloth_start[k]:cloth_start[k+1]``) and ``cloth_triangle_start`` (K+1,,
+    likewise its triangles); ``usd`` a time-sampled USD stage (one mesh per
+    cloth); ``html`` a self-contained web player. The OBJ sequence has one
+    ``o`` object per cloth when there are several. Every path is checked
     before the run and written whole, or not at all, after it.
     """
 
@@ -108,7 +124,8 @@ class FrameRecorder:
         self.active = bool(self.sequence_dir or self.outputs)
         self._sequence = None
         if self.sequence_dir:
-            self._sequence = ObjSequence(self.sequence_dir, sim.model.uvs, sim.model.triangles)
+            self._sequence = ObjSequence(self.sequence_dir, sim.model.uvs, sim.model.triangles,
+                                         objects=model_objects(sim.model))
             self._sequence.write(sim.frame, sim.positions)  # normals: computed by its thread
 
     def __call__(self, sim: Simulation) -> None:

@@ -39,10 +39,25 @@ class Trajectory:
     """the scene's name (its file's stem)"""
     description: str = ""
     """the parameters in one line"""
+    cloths: tuple = ()
+    """the model's cloths in scene order (:class:`~clothsim.model.Cloth`: ``name``,
+    points ``start:stop``, triangles ``tri_start:tri_stop``); empty: one cloth of
+    every point and triangle (see :attr:`parts`)"""
 
     @property
     def num_frames(self) -> int:
         return self.positions.shape[0]
+
+    @property
+    def parts(self) -> tuple:
+        """:attr:`cloths`, or when it is empty one cloth named ``cloth`` holding
+        every point and triangle: what the exporters split the frames by"""
+        if self.cloths:
+            return tuple(self.cloths)
+        from .model import Cloth
+
+        n, t = self.positions.shape[1], len(self.triangles)
+        return (Cloth(0, n, 0.0, 0.0, None, 0.0, 0.0, 0, t, "cloth"),)
 
     def normals(self, frame: int) -> np.ndarray:
         """unit vertex normals of ``frame``, float64 (N, 3)"""
@@ -103,7 +118,7 @@ def _trajectory(sim, positions: np.ndarray, times: np.ndarray, frames_per_sec: f
                       frames_per_sec=float(frames_per_sec),
                       spheres=copy.deepcopy(sim.spheres), planes=copy.deepcopy(sim.planes),
                       scene=sim.scene.to_dict(), name=name.removesuffix(".json"),
-                      description=sim.params.describe())
+                      description=sim.params.describe(), cloths=tuple(sim.model.cloths))
 
 
 def record(sim, seconds: float, every: int = 1) -> Trajectory:
@@ -116,7 +131,9 @@ def record(sim, seconds: float, every: int = 1) -> Trajectory:
     every ``every``-th frame stepped, so there are ``frames // every + 1`` of
     them, ``every / frames_per_sec`` seconds apart (the last frames are left
     out when ``every`` does not divide the count; the simulation still runs
-    them). ``positions``: float64 (F, N, 3) [m], row-major grid order;
+    them). ``positions``: float64 (F, N, 3) [m], every cloth's points in scene
+    order (a grid's row-major, a mesh's in its file's order; ``cloths`` says
+    which are whose);
     ``times``: float64 (F,) [s] of simulated time since the start;
     ``frames_per_sec``: the recorded frames per simulated second. The frames
     take F x N x 24 bytes (5 s of a 50x50 cloth at 90 frames/s: 27 MB).

@@ -3,22 +3,25 @@
 A file holds, in this order, a comment line, the ``v`` lines (positions [m],
 ``%.9g``), the ``vt`` lines (``%.6g``), the ``vn`` lines (unit normals,
 ``%.6g``) and the ``f`` lines (``f a/a/a b/b/b c/c/c``: v, vt and vn share the
-index, 1-based, counter-clockwise seen from the front); vertices in the grid's
-row-major order. The text is byte for byte what ``np.savetxt`` with those
+index, 1-based, counter-clockwise seen from the front); vertices in the
+model's order (every cloth's points in scene order: a grid's row-major, a
+mesh's in its file's order). A scene of several cloths gets one object per
+cloth: the vertex lines of all cloths come first (OBJ's vertex lists are
+global to the file), then each cloth's ``o NAME`` line and its own faces,
+which use only its own vertices; trimesh and Blender split the file into one
+mesh per object. A single cloth's file has no ``o`` line, as before.
+The text is byte for byte what ``np.savetxt`` with those
 formats writes, made by a compiled formatter (:mod:`.objtext`), with the
 ``vt`` and ``f`` lines made once per mesh: a frame of 2,500 points takes 0.7 ms
 (np.savetxt: 17 ms).
 
-:class:`ObjSequence` writes one such file per frame and, on POSIX, formats and
-writes them in a background thread whose work holds no GIL, so a sequence costs
-the simulation little more than copying each frame (see its docstring).
+:class:`~clothsim.export.objseq.ObjSequence` writes one such file per frame and,
+on POSIX, formats and writes them in a background thread whose work holds no
+GIL, so a sequence costs the simulation little more than copying each frame.
 """
 
 from __future__ import annotations
 
-import atexit
-import os
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -40,29 +43,65 @@ def compute_normals(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return compute_normals(positions, triangles)
 
 
-class MeshText:
-    """The lines of a mesh that do not change from frame to frame: ``vt`` and ``f``."""
+Objects = tuple[tuple[str, int, int], ...]
+"""OBJ objects: (name, first triangle, end triangle) each, the triangles in order"""
 
-    def __init__(self, uvs: np.ndarray, triangles: np.ndarray) -> None:
+
+def model_objects(model) -> Objects | None:
+    """One OBJ object per cloth of ``model`` (its name and triangle range), or
+    None for a model of one cloth (its file has no ``o`` line)."""
+    if len(model.cloths) == 1:
+        return None
+    return tuple((c.name, c.tri_start, c.tri_stop) for c in model.cloths)
+
+
+def _object_name(name: str) -> str:
+    """an ``o`` line's name: one word (white space turned into ``_``)"""
+    return "_".join(str(name).split()) or "cloth"
+
+
+class MeshText:
+    """The lines of a mesh that do not change from frame to frame: ``vt`` and ``f``
+    (with the ``o`` lines of ``objects``, when given)."""
+
+    def __init__(self, uvs: np.ndarray, triangles: np.ndarray, objects: Objects | None = None) -> None:
         self.uvs = np.array(uvs, copy=True)
         self.triangles = np.array(triangles, copy=True)
+        self.objects = _objects(objects)
         self.vt = _objtext().format_rows(self.uvs, "vt ", 6)
         t = np.repeat(self.triangles.astype(np.int64) + 1, 3, axis=1)  # v/vt/vn share the index
-        self.faces = ("f %d/%d/%d %d/%d/%d %d/%d/%d\n" * len(t) % tuple(t.ravel().tolist())).encode("ascii")
+        if self.objects is None:
+            self.faces = _faces(t)
+        else:
+            bounds = [0] + [b for _, _, b in self.objects]
+            if not self.objects or [a for _, a, _ in self.objects] != bounds[:-1] or bounds[-1] != len(t):
+                raise ValueError("OBJ objects: expected triangle ranges that follow each other and cover "
+                                 f"all {len(t)} triangles, got {self.objects}")
+            self.faces = b"".join(f"o {_object_name(n)}\n".encode("ascii", "replace") + _faces(t[a:b])
+                                  for n, a, b in self.objects)
 
-    def matches(self, uvs: np.ndarray, triangles: np.ndarray) -> bool:
+    def matches(self, uvs: np.ndarray, triangles: np.ndarray, objects: Objects | None = None) -> bool:
         return (np.shape(uvs) == self.uvs.shape and np.shape(triangles) == self.triangles.shape
-                and np.array_equal(uvs, self.uvs) and np.array_equal(triangles, self.triangles))
+                and np.array_equal(uvs, self.uvs) and np.array_equal(triangles, self.triangles)
+                and _objects(objects) == self.objects)
+
+
+def _objects(objects) -> Objects | None:
+    return None if objects is None else tuple((str(n), int(a), int(b)) for n, a, b in objects)
+
+
+def _faces(t: np.ndarray) -> bytes:
+    return ("f %d/%d/%d %d/%d/%d %d/%d/%d\n" * len(t) % tuple(t.ravel().tolist())).encode("ascii")
 
 
 _last_mesh: list[MeshText] = []
 """the mesh text of the last call, reused while the uvs and triangles are the same"""
 
 
-def _mesh_text(uvs: np.ndarray, triangles: np.ndarray) -> MeshText:
-    if _last_mesh and _last_mesh[0].matches(uvs, triangles):
+def _mesh_text(uvs: np.ndarray, triangles: np.ndarray, objects: Objects | None = None) -> MeshText:
+    if _last_mesh and _last_mesh[0].matches(uvs, triangles, objects):
         return _last_mesh[0]
-    mesh = MeshText(uvs, triangles)
+    mesh = MeshText(uvs, triangles, objects)
     _last_mesh[:] = [mesh]
     return mesh
 
@@ -72,242 +111,38 @@ def _frame_parts(positions: np.ndarray, normals: np.ndarray, mesh: MeshText) -> 
     return [HEADER, fmt(positions, "v ", 9), mesh.vt, fmt(normals, "vn ", 6), mesh.faces]
 
 
-def obj_bytes(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, triangles: np.ndarray) -> bytes:
-    """The OBJ file of one frame (see the module docstring), as ASCII bytes."""
-    return b"".join(_frame_parts(positions, normals, _mesh_text(uvs, triangles)))
+def obj_bytes(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, triangles: np.ndarray,
+              objects: Objects | None = None) -> bytes:
+    """The OBJ file of one frame (see the module docstring), as ASCII bytes:
+    ``positions`` [m] and unit ``normals`` (N, 3), ``uvs`` (N, 2), ``triangles``
+    int (T, 3); ``objects``: one ``o`` per entry (:func:`model_objects`), or none."""
+    return b"".join(_frame_parts(positions, normals, _mesh_text(uvs, triangles, objects)))
 
 
-def obj_text(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, triangles: np.ndarray) -> str:
-    """OBJ with v, vt, vn and f lines; vertices in the grid's row-major order."""
-    return obj_bytes(positions, normals, uvs, triangles).decode("ascii")
+def obj_text(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, triangles: np.ndarray,
+             objects: Objects | None = None) -> str:
+    """OBJ with v, vt, vn and f lines (and ``o`` lines for ``objects``), as text."""
+    return obj_bytes(positions, normals, uvs, triangles, objects).decode("ascii")
 
 
 def write_obj(path: str | Path, positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray,
-              triangles: np.ndarray) -> None:
+              triangles: np.ndarray, objects: Objects | None = None) -> None:
     """Write one frame's OBJ to ``path``, whole or not at all."""
-    data = obj_bytes(positions, normals, uvs, triangles)
+    data = obj_bytes(positions, normals, uvs, triangles, objects)
     write_atomic(path, lambda tmp: tmp.write_bytes(data))
 
 
-def _write_file(path: Path, parts: list[bytes]) -> None:
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
-    try:
-        for part in parts:
-            view = memoryview(part)
-            while view:
-                view = view[os.write(fd, view):]
-    finally:
-        os.close(fd)
+def model_obj_text(model, positions: np.ndarray, normals: np.ndarray | None = None) -> str:
+    """The OBJ of ``model`` (a :class:`~clothsim.model.Model`) at ``positions`` [m]
+    (N, 3): its uvs and triangles, one object per cloth when it has several;
+    ``normals`` (N, 3) computed from the positions when None."""
+    if normals is None:
+        normals = compute_normals(np.asarray(positions, np.float64), model.triangles)
+    return obj_text(positions, normals, model.uvs, model.triangles, model_objects(model))
 
 
-class ObjSequence:
-    """Writes ``folder/frame_NNNN.obj`` for each frame given to :meth:`write`;
-    :meth:`close` waits for the last and raises the first error.
-
-    Each file is written under a hidden temporary name (``.frame_NNNN.obj.tmp``)
-    and renamed when whole, so a ``frame_*.obj`` is never partial.
-
-    ``background`` (default: on 64-bit POSIX): :meth:`write` copies the frame
-    into a ring of at most ``ring_bytes`` (at least two frames) and returns; a
-    thread takes the queued frames (when ``BATCH`` of them are waiting, the ring
-    is full, :meth:`close` is called, or every ``WAKE_S`` seconds) and
-    computes the normals where none were given, formats and writes them, file
-    by file with the C library's creat/write/close/rename, in one compiled call
-    that holds no GIL (:func:`.objtext.write_frames`): it needs the GIL only
-    to pick up a batch and hand it back, and asks for it seldom (a simulation
-    stepped by kernels that keep the GIL lets it go only between frames).
-    :meth:`write` waits when the ring is full. Without ``background`` each file is written before
-    :meth:`write` returns. The files are the same either way.
-
-    Frames still queued when the interpreter exits are written then (an
-    ``atexit`` hook), so a run that stops on an error keeps the frames it made.
-    """
-
-    BATCH = 8
-    """frames queued before the thread is woken"""
-    WAKE_S = 0.05
-    """the longest a queued frame waits for the thread [s]"""
-
-    def __init__(self, folder: str | Path, uvs: np.ndarray, triangles: np.ndarray,
-                 background: bool | None = None, ring_bytes: int = 64 << 20,
-                 name: str = "frame_{:04d}.obj") -> None:
-        self.folder = Path(folder)
-        self.name = name
-        self.mesh = MeshText(uvs, triangles)
-        ot = _objtext()
-        self.background = ot.NATIVE_WRITE if background is None else bool(background and ot.NATIVE_WRITE)
-        self._error: BaseException | None = None
-        self._closed = False
-        if not self.background:
-            return
-        n = len(self.mesh.uvs)
-        self._slots = int(max(2, min(64, ring_bytes // max(1, 48 * n))))
-        self._batch = max(1, min(self.BATCH, self._slots // 2))
-        self._positions = np.empty((self._slots, n, 3))
-        self._normals = np.empty((self._slots, n, 3))
-        self._free = list(range(self._slots))
-        self._queued: list[tuple[int, Path, bool]] = []  # (slot, path, normals to compute) for the thread
-        self._done: list[tuple[int, Path, bool, int]] = []  # the same and the status, back from it
-        self._busy = 0
-        self._cond = threading.Condition()
-        self._flush = False
-        self._stop = False
-        self._triangles = np.ascontiguousarray(self.mesh.triangles, dtype=np.int32)
-        self._head = np.frombuffer(HEADER, np.uint8)
-        self._vt = np.frombuffer(self.mesh.vt, np.uint8)
-        self._faces = np.frombuffer(self.mesh.faces, np.uint8)
-        self._v_prefix = np.frombuffer(b"v ", np.uint8)
-        self._vn_prefix = np.frombuffer(b"vn ", np.uint8)
-        self._copy = ot.copy_frame
-        self._scratch = np.empty(n * (ot.line_width(3, 2, 9) + ot.line_width(3, 3, 6)), np.uint8)
-        self._thread = threading.Thread(target=self._work, name="clothsim-obj-sequence", daemon=True)
-        self._thread.start()
-        atexit.register(self._at_exit)
-
-    # ------------------------------------------------------------ main thread
-
-    def path(self, frame: int) -> Path:
-        return self.folder / self.name.format(frame)
-
-    @staticmethod
-    def _tmp(path: Path) -> Path:
-        return path.with_name(f".{path.name}.tmp")
-
-    def write(self, frame: int, positions: np.ndarray, normals: np.ndarray | None = None) -> None:
-        """Write (or queue) frame number ``frame``: positions [m], (N, 3), and the unit
-        vertex normals; when None, ``clothsim.mesh.vertex_normals`` computes them
-        (in the thread: compiled into its kernel, where fastmath may contract the
-        arithmetic differently from ``Simulation.normals``, within 1e-15, which
-        the 6 digits of a vn line do not show)."""
-        if self._closed:
-            raise ValueError("the OBJ sequence is closed")
-        path = self.path(frame)
-        if not self.background:
-            if normals is None:
-                normals = compute_normals(np.asarray(positions, np.float64), self.mesh.triangles)
-            tmp = self._tmp(path)
-            try:
-                _write_file(tmp, _frame_parts(positions, normals, self.mesh))
-                os.replace(tmp, path)
-            except BaseException:
-                tmp.unlink(missing_ok=True)
-                raise
-            return
-        with self._cond:
-            while not self._free and self._error is None:
-                self._reap_locked()
-                if not self._free:
-                    self._flush = True
-                    self._cond.notify_all()
-                    self._cond.wait()
-            self._reap_locked()
-            self._raise_locked()
-            slot = self._free.pop()
-        positions = np.asarray(positions, np.float64)
-        self._copy(self._positions, self._normals, slot, positions,
-                   positions if normals is None else np.asarray(normals, np.float64))
-        with self._cond:
-            self._queued.append((slot, path, normals is None))
-            self._busy += 1
-            if len(self._queued) >= self._batch:
-                self._cond.notify_all()
-
-    def _reap_locked(self) -> None:
-        """take back the slots of the frames the thread finished, and write again in
-        Python those it could not (with the lock held)"""
-        done, self._done = self._done, []
-        for slot, path, compute, status in done:
-            tmp = self._tmp(path)
-            try:
-                if status != 0:  # FRAME_WRITE_FAILED learns why, FRAME_UNDECIDED formats in Python
-                    positions = self._positions[slot]
-                    normals = compute_normals(positions, self._triangles) if compute else self._normals[slot]
-                    _write_file(tmp, _frame_parts(positions, normals, self.mesh))
-                    os.replace(tmp, path)
-            except BaseException as e:
-                tmp.unlink(missing_ok=True)
-                if self._error is None:
-                    self._error = e
-            finally:
-                self._free.append(slot)
-                self._busy -= 1
-
-    def _raise_locked(self) -> None:
-        if self._error is not None:
-            error, self._error = self._error, None
-            self._shutdown_locked()
-            raise error
-
-    def _shutdown_locked(self) -> None:
-        self._stop = True
-        self._closed = True
-        self._busy -= len(self._queued)  # never handed to the thread
-        self._queued = []
-        self._cond.notify_all()
-
-    def close(self) -> None:
-        """Wait until every frame is written; raise the first error met."""
-        if not self.background:
-            self._closed = True
-            return
-        with self._cond:
-            if self._closed and self._busy == 0:
-                return
-            self._closed = True
-            self._flush = True
-            self._cond.notify_all()
-            while self._busy > 0:
-                self._reap_locked()
-                if self._busy > 0:
-                    self._cond.wait()
-            self._stop = True
-            self._cond.notify_all()
-            error, self._error = self._error, None
-        self._thread.join()
-        atexit.unregister(self._at_exit)
-        if error is not None:
-            raise error
-
-    def _at_exit(self) -> None:
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001 - the run has already failed or ended
-            pass
-
-    def __enter__(self) -> ObjSequence:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    # ------------------------------------------------------------ the thread
-
-    def _work(self) -> None:
-        ot = _objtext()
-        while True:
-            with self._cond:
-                while not self._stop and not (self._queued and (self._flush or len(self._queued) >= self._batch)):
-                    if not self._cond.wait(self.WAKE_S) and self._queued:
-                        break  # a frame waited WAKE_S: take what there is
-                if not self._queued:
-                    return
-                batch, self._queued = self._queued, []
-                self._flush = False
-            slots = np.array([slot for slot, _, _ in batch], np.int64)
-            compute = np.array([c for _, _, c in batch], np.bool_)
-            names = []
-            for _, path, _ in batch:
-                names += [os.fsencode(self._tmp(path)), os.fsencode(path)]
-            width = max(map(len, names)) + 1  # NUL-terminated, in rows of one width
-            table = np.frombuffer(b"".join(n.ljust(width, b"\0") for n in names), np.uint8)
-            table = table.reshape(len(names), width)
-            status = np.full(len(batch), ot.FRAME_WRITE_FAILED, np.int64)
-            try:
-                ot.write_frames(self._positions, self._normals, slots, compute, self._triangles, table,
-                                self._head, self._vt, self._faces, self._v_prefix, self._vn_prefix,
-                                self._scratch, status)
-            except BaseException:  # noqa: BLE001 - each frame is written again by the main thread
-                pass
-            with self._cond:
-                self._done.extend((slot, path, c, int(st)) for (slot, path, c), st in zip(batch, status))
-                self._cond.notify_all()
+def write_model_obj(path: str | Path, model, positions: np.ndarray, normals: np.ndarray | None = None) -> None:
+    """Write :func:`model_obj_text` to ``path``, whole or not at all (``Simulation.export_obj``)."""
+    if normals is None:
+        normals = compute_normals(np.asarray(positions, np.float64), model.triangles)
+    write_obj(path, positions, normals, model.uvs, model.triangles, model_objects(model))

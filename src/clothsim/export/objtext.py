@@ -7,7 +7,7 @@ the exponent form outside 1e-4 <= |x| < 10**P, ``nan``/``inf``), about 10x
 faster (2,500 rows of three %.9g: 0.33 ms, np.savetxt 3.1 ms).
 :func:`write_frames` formats a batch of frames and writes each whole file with
 the C library's creat/write/close/rename in one call that holds no GIL, so
-that a background thread (:class:`clothsim.export.obj.ObjSequence`) writes an
+that a background thread (:class:`clothsim.export.objseq.ObjSequence`) writes an
 OBJ sequence beside the simulation, taking the GIL only to pick up a batch.
 
 Exactness: for 10**(P-22) <= |x| < 10**(P-1), ``|x| * 10**s`` (0 <= s <= 22,

@@ -6,6 +6,10 @@ Layout of the stage (``/World`` is the default prim)::
     /World/Cloth                Mesh: points, normals and extent sampled at every frame,
                                 faceVertexCounts/Indices once, primvars:st (vertex uvs),
                                 primvars:displayColor, subdivisionScheme "none"
+    /World/Cloths/NAME          (a scene of several cloths, instead of /World/Cloth) one
+                                such Mesh per cloth, named by the cloth's name (cloth_0,
+                                cloth_1, ...; made a valid prim name), its own points and
+                                faces (indices into its own points), in scene order
     /World/Colliders            Scope
     /World/Colliders/Sphere_0   Sphere: radius, xformOp:translate (the origin)
     /World/Colliders/Plane_0    Plane (axis "Y"), xformOp:translate + xformOp:orient
@@ -19,7 +23,10 @@ y up. The layer's ``customLayerData`` holds the scene name (``clothsim:scene``),
 parameters in one line (``clothsim:description``) and the whole scene as JSON
 (``clothsim:sceneJson``); its doc string says the same in words.
 
-The colliders carry their friction as the custom attribute ``clothsim:friction``.
+Each cloth's mesh carries ``clothsim:name`` (the cloth's name) and
+``clothsim:firstPoint`` (where its points start in the run's concatenated
+points: the NumPy export's ``cloth_start``). The colliders carry their
+friction as the custom attribute ``clothsim:friction``.
 Colliders do not move in a clothsim run, so they hold no time samples.
 
 Orientation: the triangles are counter-clockwise seen from the front (the side
@@ -105,49 +112,80 @@ def write_usd(path: str | Path, traj: Trajectory) -> None:
     stage.finish(path, traj)
 
 
+def cloth_prim_paths(names: list[str]) -> list[str]:
+    """The prim path of each cloth's Mesh: ``/World/Cloth`` for one cloth, else
+    ``/World/Cloths/NAME`` with each name made a valid, unique prim name."""
+    from pxr import Tf
+
+    if len(names) == 1:
+        return ["/World/Cloth"]
+    out, seen = [], set()
+    for name in names:
+        base = Tf.MakeValidIdentifier(str(name)) or "cloth"
+        ident, k = base, 1
+        while ident in seen:
+            ident, k = f"{base}_{k}", k + 1
+        seen.add(ident)
+        out.append(f"/World/Cloths/{ident}")
+    return out
+
+
 class StageBuilder:
     """A stage built frame by frame, so that a run's frames can go in while it runs
     (``FrameRecorder`` feeds one from a thread beside the substeps, which release
-    the GIL): the cloth's topology and uvs from ``start``, a trajectory of the
-    run's first frame; its points, normals and extent at each :meth:`add`; the
+    the GIL): each cloth's topology and uvs from ``start``, a trajectory of the
+    run's first frame; their points, normals and extent at each :meth:`add`; the
     frame range, the colliders and the file at :meth:`finish`."""
 
     def __init__(self, start: Trajectory) -> None:
         from pxr import Sdf, Usd, UsdGeom, Vt
 
         self._pxr = Sdf, Usd, UsdGeom, Vt
-        self.triangles = start.triangles
+        self.triangles = np.ascontiguousarray(start.triangles, dtype=np.int32)
         self.layer = Sdf.Layer.CreateAnonymous("clothsim.usdc")
         self.stage = Usd.Stage.Open(self.layer)
         world = UsdGeom.Xform.Define(self.stage, "/World")
         self.stage.SetDefaultPrim(world.GetPrim())
-        mesh = UsdGeom.Mesh.Define(self.stage, "/World/Cloth")
-        tris = np.ascontiguousarray(start.triangles, dtype=np.int32)
-        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(tris), 3, dtype=np.int32)))
-        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(tris.ravel()))
-        mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
-        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # a polygon cloth, its normals as given
-        mesh.CreateDoubleSidedAttr(True)  # both sides are seen, as the renderer draws them
-        mesh.CreateDisplayColorAttr(Vt.Vec3fArray([CLOTH_COLOR]))
-        st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                                     UsdGeom.Tokens.vertex)
-        st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(start.uvs, dtype=np.float32)))
-        mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
-        self.points, self.normals = mesh.CreatePointsAttr(), mesh.CreateNormalsAttr()
-        self.extent = mesh.CreateExtentAttr()
+        parts = start.parts
+        paths = cloth_prim_paths([c.name for c in parts])
+        if len(parts) > 1:
+            UsdGeom.Scope.Define(self.stage, "/World/Cloths")
+        uvs = np.ascontiguousarray(start.uvs, dtype=np.float32)
+        self.cloths = []  # (points slice, points attr, normals attr, extent attr)
+        for cloth, path in zip(parts, paths):
+            mesh = UsdGeom.Mesh.Define(self.stage, path)
+            tris = np.ascontiguousarray(self.triangles[cloth.triangle_range] - cloth.start, dtype=np.int32)
+            mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(tris), 3, dtype=np.int32)))
+            mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(tris.ravel()))
+            mesh.CreateOrientationAttr(UsdGeom.Tokens.rightHanded)
+            mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)  # a polygon cloth, its normals as given
+            mesh.CreateDoubleSidedAttr(True)  # both sides are seen, as the renderer draws them
+            mesh.CreateDisplayColorAttr(Vt.Vec3fArray([CLOTH_COLOR]))
+            st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                         UsdGeom.Tokens.vertex)
+            st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uvs[cloth.points])))
+            mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+            prim = mesh.GetPrim()
+            prim.CreateAttribute("clothsim:name", Sdf.ValueTypeNames.String, custom=True).Set(str(cloth.name))
+            prim.CreateAttribute("clothsim:firstPoint", Sdf.ValueTypeNames.Int, custom=True).Set(int(cloth.start))
+            self.cloths.append((cloth.points, mesh.CreatePointsAttr(), mesh.CreateNormalsAttr(),
+                                mesh.CreateExtentAttr()))
         self.frames = 0
 
     def add(self, positions: np.ndarray) -> None:
-        """The next frame's point positions [m], (N, 3): one bulk copy per
-        attribute (FromNumpy), the extent in C++; no per-point Python."""
+        """The next frame's point positions [m], (N, 3), every cloth's: one bulk
+        copy per attribute and cloth (FromNumpy), the extent in C++; no
+        per-point Python."""
         Sdf, Usd, UsdGeom, Vt = self._pxr
         t = Usd.TimeCode(float(self.frames))
-        frame = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(positions, dtype=np.float32))
-        normals = compute_normals(np.ascontiguousarray(positions, dtype=np.float64), self.triangles)
+        positions = np.ascontiguousarray(positions, dtype=np.float64)
+        normals = compute_normals(positions, self.triangles).astype(np.float32)
         with Sdf.ChangeBlock():  # setting values (not defining prims) is safe inside one
-            self.points.Set(frame, t)
-            self.normals.Set(Vt.Vec3fArray.FromNumpy(normals.astype(np.float32)), t)
-            self.extent.Set(UsdGeom.PointBased.ComputeExtent(frame), t)
+            for points, p_attr, n_attr, e_attr in self.cloths:
+                frame = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(positions[points], dtype=np.float32))
+                p_attr.Set(frame, t)
+                n_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(normals[points])), t)
+                e_attr.Set(UsdGeom.PointBased.ComputeExtent(frame), t)
         self.frames += 1
 
     def finish(self, path: str | Path, traj: Trajectory) -> None:
@@ -224,4 +262,4 @@ def _collider_extras(gprim, friction: float, Sdf, Vt) -> None:
         float(friction))
 
 
-__all__ = ["USD_FORMATS", "StageBuilder", "check_usd_path", "usd_format", "write_usd"]
+__all__ = ["USD_FORMATS", "StageBuilder", "check_usd_path", "cloth_prim_paths", "usd_format", "write_usd"]

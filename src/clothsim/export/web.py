@@ -2,11 +2,13 @@
 
 The page holds everything it needs: a small WebGL2 player written for
 clothsim (no library, no network at view time: it works opened from disk),
-the frames, the colliders and the scene's name and parameters. It draws the
-cloth with per-vertex normals computed in the page and Blinn-Phong shading in
-the cloth colour (the back a darker shade of it), spheres and planes in the
-renderer's neutral grey, and has an orbit (drag), pan (shift-drag or right
-drag) and zoom (wheel) camera, a play/pause button and a time slider.
+the frames, the colliders and the scene's name and parameters. It draws every
+cloth of the run (one mesh: the frames hold every cloth's points in scene
+order, ``meta.cloths`` says which are whose) with per-vertex normals computed
+in the page and Blinn-Phong shading in the cloth colour (the back a darker
+shade of it), spheres and planes in the renderer's neutral grey, and has an
+orbit (drag), pan (shift-drag or right drag) and zoom (wheel) camera, a
+play/pause button and a time slider.
 
 How the frames are stored (``FORMAT``), per coordinate axis ``a``:
 
@@ -53,7 +55,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..render.camera import FOV_Y_DEG, NEAR, Light, OrbitCamera, framing
+from ..render.camera import FOV_Y_DEG, NEAR, Light, OrbitCamera, fit_points, framing
 from ..render.renderer import BACKGROUND, COLLIDER_COLOR, DrawSettings
 
 if TYPE_CHECKING:  # the Trajectory's notebook display imports this module
@@ -149,7 +151,9 @@ def _blob(array: np.ndarray) -> str:
 
 def read_player(text: str) -> dict:
     """What a page written by :func:`player_html` holds, decoded in Python:
-    ``meta`` (its JSON), ``positions`` float64 (F, N, 3), ``times``, ``triangles``."""
+    ``meta`` (its JSON; ``meta["cloths"]``: each cloth's ``name``, points
+    ``start:stop`` and triangles ``tri_start:tri_stop``), ``positions`` float64
+    (F, N, 3), ``times``, ``triangles``."""
     def script(ident: str) -> str:
         start = text.index(f'id="{ident}"')
         start = text.index(">", start) + 1
@@ -223,7 +227,7 @@ def player_html(traj: Trajectory, color: Sequence[float] = DEFAULT_COLOR, width:
     quant, pos_texts = encode_positions(positions)
     lo, hi = _box(traj, quant)
     target, distance = framing(lo, hi)
-    cam = OrbitCamera(target=target, distance=distance)
+    cam = fit_points(OrbitCamera(target=target, distance=distance), positions[0])  # the start in view
     if camera is not None:
         cam.azimuth, cam.elevation, cam.distance = _floats(camera, 3, "camera")
     reach = positions[0].max(axis=0) - positions[0].min(axis=0)
@@ -235,6 +239,8 @@ def player_html(traj: Trajectory, color: Sequence[float] = DEFAULT_COLOR, width:
     meta = {
         "format": FORMAT, "name": name, "description": traj.description,
         "frames": frames, "points": points, "triangles": int(len(traj.triangles)),
+        "cloths": [{"name": c.name, "start": c.start, "stop": c.stop, "tri_start": c.tri_start,
+                    "tri_stop": c.tri_stop} for c in traj.parts],
         "fps": float(traj.frames_per_sec), "duration": duration,
         "times": [round(float(t), 6) for t in traj.times],
         **quant,
@@ -332,6 +338,7 @@ const slider = root.querySelector(".slider");
 const timeLabel = root.querySelector(".time");
 const message = root.querySelector(".message");
 root.querySelector(".stats").textContent =
+  (meta.cloths.length > 1 ? meta.cloths.length + " cloths \u00b7 " : "") +
   N + " points \u00b7 " + F + " frames \u00b7 " + meta.duration.toFixed(2) + " s at " + meta.fps + " frames/s";
 
 let ready = false, playing = false, frame = 0, clock = 0, error = null, stepped = 0;

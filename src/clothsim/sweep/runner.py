@@ -30,7 +30,7 @@ def run_one(spec: RunSpec) -> RunResult:
     Never raises for a bad run: the error is returned, so the sweep goes on.
     """
     from ..errors import ClothsimError
-    from ..export import obj_text
+    from ..export import model_obj_text
     from ..metrics import measure
     from ..scene import apply_overrides, parse_scene
     from ..simulation import Simulation
@@ -42,7 +42,7 @@ def run_one(spec: RunSpec) -> RunResult:
         sim = Simulation(scene, threads=1)  # the sweep runs in parallel already
         frames = sim.run(spec.seconds)
         result.record = {**measure(sim), "frames": frames}
-        result.obj = obj_text(sim.positions, sim.normals, sim.model.uvs, sim.model.triangles)
+        result.obj = model_obj_text(sim.model, sim.positions, sim.normals)
         result.png = _render_png(sim, spec)
     except ClothsimError as exc:
         result.error = str(exc)
