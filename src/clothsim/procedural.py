@@ -187,7 +187,7 @@ def poisson_points(count: int, side: float, spacing: float, seed: int) -> np.nda
     grid: dict[tuple[int, int], tuple[float, float]] = {}
 
     def key(p):
-        return int(math.floor((p[0] + h) / cell)), int(math.floor((p[1] + h) / cell))
+        return math.floor((p[0] + h) / cell), math.floor((p[1] + h) / cell)
 
     for p in kept:
         grid[key(p)] = p
