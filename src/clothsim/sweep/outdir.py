@@ -1,5 +1,9 @@
 """The sweep's output folder: per-run PNG/OBJ, records, runs.csv, sheet.png.
 
+runs.csv has a row per run: the varied values, the measures of
+:data:`METRIC_COLUMNS` and, for a scene of several cloths, each cloth's own
+(``NAME.lowest_y``, ``NAME.sag``, ``NAME.max_stretch``).
+
 A run is done when ``records/NAME.json`` holds its digest; re-running skips
 it. Files the sweep did not write, or wrote for different settings, are
 never replaced without ``--force``.
@@ -81,18 +85,20 @@ class SweepDir:
         """runs.csv and sheet.png over every planned run, and the manifest."""
         self.path.mkdir(parents=True, exist_ok=True)
         keys = [k for k, _ in specs[0].values] if specs else []
+        records = [self.load_record(spec) or {"error": "not run"} for spec in specs]
+        cloth_columns = cloth_metric_columns(records)
         rows = []
-        for spec in specs:
-            rec = self.load_record(spec) or {"error": "not run"}
+        for spec, rec in zip(specs, records):
             row = {"run": spec.index, "name": spec.name, **{k: v for k, v in spec.values}}
-            for col in METRIC_COLUMNS:
+            for col in METRIC_COLUMNS + cloth_columns:
                 row[col] = _cell(rec.get(col))
             row["error"] = rec.get("error") or ""
             row["png"] = f"{spec.name}.png" if (self.path / f"{spec.name}.png").exists() else ""
             row["obj"] = f"{spec.name}.obj" if (self.path / f"{spec.name}.obj").exists() else ""
             rows.append(row)
         buf = io.StringIO()
-        writer = csv.DictWriter(buf, fieldnames=["run", "name", *keys, *METRIC_COLUMNS, "error", "png", "obj"])
+        writer = csv.DictWriter(buf, fieldnames=["run", "name", *keys, *METRIC_COLUMNS, *cloth_columns,
+                                                 "error", "png", "obj"])
         writer.writeheader()
         writer.writerows(rows)
         write_atomic(self.path / "runs.csv", lambda t: t.write_text(buf.getvalue()))
@@ -121,6 +127,18 @@ class SweepDir:
         def save(tmp: Path) -> None:
             Image.fromarray(sheet).save(tmp, format="PNG")
         write_atomic(self.path / "sheet.png", save)
+
+
+def cloth_metric_columns(records: list[dict[str, Any]]) -> list[str]:
+    """The per-cloth measures of a scene of several cloths (``cloth_0.sag``, ...:
+    :func:`clothsim.metrics.measure`), in the order the records hold them; none
+    for a scene of one cloth."""
+    out: dict[str, None] = {}
+    for rec in records:
+        for key, value in rec.items():
+            if "." in key and key not in METRIC_COLUMNS and not isinstance(value, (dict, list)):
+                out[key] = None
+    return list(out)
 
 
 def _cell(value: Any) -> Any:

@@ -38,19 +38,37 @@ class RunSpec:
     @property
     def name(self) -> str:
         """file stem: index plus the varied values, safe for any file system"""
-        parts = [f"{k.split('.')[-1]}={_short(v)}" for k, v in self.values]
+        keys = short_keys([k for k, _ in self.values])
+        parts = [f"{_INDEX.sub(_unbracket, key)}={_short(v)}" for key, (_, v) in zip(keys, self.values)]
         stem = re.sub(r"[^A-Za-z0-9=._-]+", "_", "_".join(parts)) or "run"
         return f"{self.index:03d}_{stem}"[:120]
 
     @property
     def label(self) -> str:
-        return "  ".join(f"{k.split('.')[-1]}={_short(v)}" for k, v in self.values) or "run"
+        keys = short_keys([k for k, _ in self.values])
+        return "  ".join(f"{key}={_short(v)}" for key, (_, v) in zip(keys, self.values)) or "run"
 
     def digest(self) -> str:
         """changes whenever anything that affects this run's outputs changes"""
         key = json.dumps([self.scene, self.values, self.seconds, self.shader, self.size, self.extra],
                          sort_keys=True, default=str)
         return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+_INDEX = re.compile(r"\[(\d+)\]")
+"""a list index in a key: ``cloth[1]`` is named ``cloth1`` in file names"""
+
+
+def _unbracket(match: re.Match) -> str:
+    return match.group(1)
+
+
+def short_keys(keys: list[str]) -> list[str]:
+    """What names and labels call each varied key: its last part (``ks`` for
+    ``cloth.ks``), or the whole key where two keys share that part (two cloths'
+    ``cloth[0].ks`` and ``cloth[1].ks``)."""
+    last = [k.split(".")[-1] for k in keys]
+    return [k if last.count(t) > 1 else t for k, t in zip(keys, last)]
 
 
 def _short(v: Any) -> str:
