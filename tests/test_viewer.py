@@ -174,3 +174,110 @@ def test_no_display_points_to_render(tmp_path):
     r = subprocess.run([sys.executable, "-m", "clothsim", "view", str(SCENES / "sphere.json")],
                        capture_output=True, text=True, env=env, timeout=60)
     assert r.returncode == 2 and "clothsim render" in r.stderr and "Traceback" not in r.stderr
+
+
+# ------------------------------------------------------------------ several cloths, any mesh
+
+
+def test_pick_point_on_any_triangles():
+    """a coarse mesh is grabbed anywhere on a triangle (its nearest corner), far
+    from every vertex where the nearest-point pick finds nothing; of two layers
+    the one nearer the camera wins"""
+    from clothsim.render.camera import OrbitCamera
+    from clothsim.viewer import picking
+
+    big = np.array([[0, 1, 0], [1, 1, 0], [0, 1, 1], [1, 1, 1]], float)
+    tris = np.array([[0, 2, 1], [1, 2, 3]])
+    cam = OrbitCamera(target=np.array([0.5, 1.0, 0.5]), azimuth=0, elevation=89, distance=3.0)
+    size = (400, 400)
+    vp = cam.view_projection(1.0)
+    target = np.array([0.2, 1.0, 0.3])  # inside triangle 0, nearest corner 0 (weight 0.5)
+    cursor = tuple(picking.project(target[None], vp, size)[0][0])
+    assert picking.nearest_point(big, vp, size, cursor) == -1
+    assert picking.pick_point(big, tris, vp, size, cursor) == 0
+    hit = picking.ray_hit(big, tris, *picking.cursor_ray(vp, size, cursor))
+    assert hit[0] == 0 and np.allclose(hit[1] @ big[tris[0]], target, atol=1e-9)
+    layers = np.concatenate([big, big + [0, 0.5, 0]])  # a second sheet above, nearer the camera
+    both = np.concatenate([tris, tris + 4])
+    assert picking.pick_point(layers, both, vp, size, cursor) == 4
+    far = picking.project(np.array([[3.0, 1.0, 3.0]]), vp, size)[0][0]
+    assert picking.pick_point(big, tris, vp, size, tuple(far)) == -1  # off the mesh, far from it
+
+
+@pytest.fixture(scope="module")
+def two_app(display):
+    from clothsim.scene import parse_scene
+    from clothsim.viewer.app import ViewerApp
+
+    from .handmade import two_cloth_scene
+
+    a = ViewerApp(Simulation(parse_scene(two_cloth_scene(), "two")), size=(640, 480))
+    yield a
+    a.close()
+
+
+def _click(app, xy):
+    """a left click at window pixel ``xy`` through the panel's input, a frame per
+    event (the simulation paused meanwhile)"""
+    x, y = xy
+    if not app.paused:
+        app.press("p")
+    app.gui.mouse_position_event(x, y, 0, 0)
+    frames(app, 1)
+    app.gui.mouse_press_event(x, y, app.wnd.mouse.left)
+    frames(app, 1)
+    app.gui.mouse_release_event(x, y, app.wnd.mouse.left)
+    frames(app, 2)
+
+
+def test_panel_has_a_section_per_cloth(two_app, tmp_path):
+    """two cloths: a section each with its own toggles; clicking the second
+    cloth's shearing box turns off that cloth's shearing only, and the
+    wireframe drops its shearing springs"""
+    from clothsim.model import SHEARING
+    from clothsim.render.scene_view import spring_lines
+
+    frames(two_app, 2)
+    items = two_app.panel_items
+    assert {"cloth_0/shearing", "cloth_1/shearing", "cloth_0/ks", "cloth_1/ks"} <= set(items)
+    assert items["cloth_1/shearing"][1] > items["cloth_0/ks"][1]  # the second section below the first
+    sim = two_app.sim
+    _click(two_app, items["cloth_1/shearing"])
+    assert sim.cloths[1].params.enable_shearing is False
+    assert sim.cloths[0].params.enable_shearing is True
+    lines = spring_lines(sim)
+    shear_1 = (sim.model.spring_kind == SHEARING) & (sim.model.spring_a >= sim.model.cloths[1].start)
+    assert len(lines) == sim.model.num_springs - shear_1.sum()
+    _click(two_app, items["cloth_1/shearing"])
+    assert sim.cloths[1].params.enable_shearing is True
+    assert any("2 cloths" in line for line in two_app.status_lines())
+    two_app.save_screenshot(tmp_path / "panel.png")
+    panel = np.asarray(Image.open(tmp_path / "panel.png"))[:, :300].astype(int)
+    assert (np.abs(panel - panel[0, 0]).sum(axis=2) > 60).mean() > 0.05  # text and widgets drawn
+    two_app.press("p")
+
+
+def test_grab_a_point_of_the_second_cloth(two_app):
+    """shift-drag picks on any cloth: a point of the hanging cloth, pulled toward the cursor"""
+    from clothsim.viewer import picking
+
+    app = two_app
+    app.press("r")
+    if app.paused:
+        app.press("p")
+    frames(app, 3)
+    size = app.window_size
+    vp = app.camera.view_projection(size[0] / size[1])
+    lower = app.sim.model.cloths[1]
+    index = lower.start + 3 * 12 + 6
+    px, _ = picking.project(app.sim.positions[index:index + 1], vp, size)
+    grabbed = app.grab_at(tuple(px[0]))
+    assert lower.start <= grabbed < lower.stop
+    start = app.sim.positions[grabbed].copy()
+    target_px = (px[0][0] + 40, px[0][1] - 40)
+    app.drag_to(target_px)
+    frames(app, 10)
+    now, _ = picking.project(app.sim.positions[grabbed:grabbed + 1], vp, size)
+    assert np.linalg.norm(now[0] - np.array(target_px)) < 2.0
+    assert np.linalg.norm(app.sim.positions[grabbed] - start) > 0.02
+    app._on_release(0, 0, app.wnd.mouse.left)

@@ -65,6 +65,9 @@ class ViewerApp:
         self._sim_rate = 0.0
         self._behind = 0.0
         self.message = ""
+        self.panel_items: dict[str, tuple[float, float]] = {}
+        """the centre of some panel widgets as last drawn (window pixels), by
+        ``CLOTH/structural|shearing|bending|ks``: where scripted clicks go"""
         self.screenshot_dir = Path.cwd()
         self._wire_events()
 
@@ -165,8 +168,10 @@ class ViewerApp:
         return self.camera.view_projection(w / h)
 
     def grab_at(self, cursor: tuple[float, float]) -> int:
-        """Grab the cloth point under the cursor; return its index or -1."""
-        index = picking.nearest_point(self.sim.positions, self._view_projection(), self.window_size, cursor)
+        """Grab the cloth point under the cursor (any cloth, any mesh:
+        :func:`.picking.pick_point`); return its index or -1."""
+        index = picking.pick_point(self.sim.positions, self.sim.model.triangles, self._view_projection(),
+                                   self.window_size, cursor)
         if index >= 0 and not self.sim.model.pinned[index]:
             self._grab_anchor = self.sim.positions[index].copy()
             self.sim.grab(index, self._grab_anchor)
@@ -224,8 +229,9 @@ class ViewerApp:
 
     def status_lines(self) -> list[str]:
         m = self.sim.model
+        cloths = f"{len(m.cloths)} cloths, " if len(m.cloths) > 1 else ""
         lines = [f"display {self._display_fps:5.1f} fps   t = {self.sim.time:6.2f} s",
-                 f"{self._sim_rate:,.0f} substeps/s   {m.num_points} points, {m.num_springs} springs"]
+                 f"{self._sim_rate:,.0f} substeps/s   {cloths}{m.num_points} points, {m.num_springs} springs"]
         if self.paused:
             lines.append("PAUSED  (P resume, N step)")
         if self._behind > 1.05:

@@ -1,4 +1,9 @@
-"""The Dear ImGui panel: every live parameter, and the status line."""
+"""The Dear ImGui panel: every live parameter, and the status line.
+
+A scene of one cloth shows its material under "Springs"; a scene of several
+shows one collapsing section per cloth, named by the cloth, each with that
+cloth's own toggles, ks, density and damping (``sim.cloths[i].params``).
+"""
 
 from __future__ import annotations
 
@@ -17,21 +22,48 @@ def _slider(label: str, value: float, lo: float, hi: float, fmt: str = "%.3g", l
     return imgui.slider_float(label, float(value), lo, hi, fmt, flags)
 
 
+def _remember(app: ViewerApp, key: str) -> None:
+    """where the last widget was drawn (its centre, window pixels): scripted input
+    and the tests click there"""
+    lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+    app.panel_items[key] = ((lo.x + hi.x) / 2, (lo.y + hi.y) / 2)
+
+
+def _material(app: ViewerApp, cloth) -> None:
+    """the spring toggles and sliders of one cloth's live material"""
+    m = cloth.params
+    _, m.enable_structural = imgui.checkbox("structural", m.enable_structural)
+    _remember(app, f"{cloth.name}/structural")
+    imgui.same_line()
+    _, m.enable_shearing = imgui.checkbox("shearing", m.enable_shearing)
+    _remember(app, f"{cloth.name}/shearing")
+    imgui.same_line()
+    _, m.enable_bending = imgui.checkbox("bending", m.enable_bending)
+    _remember(app, f"{cloth.name}/bending")
+    _, m.ks = _slider("ks [N/m]", m.ks, 1.0, 100000.0, "%.0f", log=True)
+    _remember(app, f"{cloth.name}/ks")
+    _, m.density = _slider("density", m.density, 1.0, 100000.0, "%.0f", log=True)
+    _, m.damping = _slider("damping [%]", m.damping, 0.0, 100.0, "%.2f")
+
+
 def draw_panel(app: ViewerApp) -> None:
     sim, p, s = app.sim, app.sim.params, app.settings
+    app.panel_items = {}
     imgui.set_next_window_pos((8, 8), imgui.Cond_.first_use_ever.value)
     imgui.set_next_window_size((PANEL_WIDTH, app.window_size[1] - 16), imgui.Cond_.first_use_ever.value)
     imgui.begin("clothsim")
 
-    if imgui.collapsing_header("Springs", imgui.TreeNodeFlags_.default_open.value):
-        _, p.enable_structural = imgui.checkbox("structural", p.enable_structural)
-        imgui.same_line()
-        _, p.enable_shearing = imgui.checkbox("shearing", p.enable_shearing)
-        imgui.same_line()
-        _, p.enable_bending = imgui.checkbox("bending", p.enable_bending)
-        _, p.ks = _slider("ks [N/m]", p.ks, 1.0, 100000.0, "%.0f", log=True)
-        _, p.density = _slider("density", p.density, 1.0, 100000.0, "%.0f", log=True)
-        _, p.damping = _slider("damping [%]", p.damping, 0.0, 100.0, "%.2f")
+    cloths = sim.cloths
+    if len(cloths) == 1:
+        if imgui.collapsing_header("Springs", imgui.TreeNodeFlags_.default_open.value):
+            _material(app, cloths[0])
+    else:  # one section per cloth, each with its own material
+        for k, cloth in enumerate(cloths):
+            title = f"{cloth.name}  ({cloth.model.num_points} points)##cloth{k}"
+            if imgui.collapsing_header(title, imgui.TreeNodeFlags_.default_open.value):
+                imgui.push_id(f"cloth{k}")
+                _material(app, cloth)
+                imgui.pop_id()
 
     if imgui.collapsing_header("Simulation", imgui.TreeNodeFlags_.default_open.value):
         _, fps = imgui.slider_int("frames/s", int(p.frames_per_sec), 10, 240)
