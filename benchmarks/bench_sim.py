@@ -11,18 +11,32 @@ round runs every variant back to back, and the costs are the medians of each
 round's differences, so a slow spell of the machine (they last seconds here)
 falls on the runs compared alike.
 
-Last, ``"bench": "settle"`` lines time the whole two-second fall and settle of
+Then ``"bench": "settle"`` lines time the whole two-second fall and settle of
 ``selfCollision`` at 100x100 on one thread and on all: the short stretches
 above end before the cloth piles up, which is when self-collision costs most.
 
+Last, ``"bench": "general_path"`` lines compare the solver's two paths at the
+same point count (``--mesh-points``, 10,000 by default), self-collision on,
+in ``sphere`` (a horizontal sheet dropped on the sphere) and
+``selfCollision`` (a vertical sheet folding onto the floor): the n x n grid
+on the grid path, the same grid on the general path, and an irregular
+triangle mesh of as many points (:func:`clothsim.procedural.delaunay_square`,
+1 m square) on the general path, one thread and all. The runs interleave,
+each of ``--repeats`` rounds running every one once, and each figure is the
+best of its rounds: the ratios are taken side by side.
+
     python benchmarks/bench_sim.py [--sizes 50,100,200] [--scenes pinned2,sphere] [--repeats 3] [--no-settle]
+                                   [--no-mesh] [--mesh-only] [--mesh-points 10000]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -94,6 +108,74 @@ def measure_rounds(scene: str, n: int, seconds: float, repeats: int, threads: in
             "self_collision_us": median(u["with"] - u["without"] for u in us)}
 
 
+MESH_SECONDS = {"sphere": 0.5, "selfCollision": 0.5}
+"""simulated time of each general-path comparison run: past the first contact"""
+
+MESH_PLACE = {"sphere": {"translate": [0.5, 1.0, 0.5]},
+              "selfCollision": {"rotate": [-90, 0, 0], "translate": [0.5, 0.5, 0.0]}}
+"""where the mesh (a 1 m square about the origin in the y=0 plane) goes to lie
+where the scene's grid cloth starts"""
+
+
+def mesh_scene(scene: str, obj: Path, folder: Path) -> Path:
+    """The standard scene with its grid cloth replaced by the mesh file ``obj``."""
+    data = json.loads((ROOT / "scenes" / f"{scene}.json").read_text())
+    grid = data["cloth"]
+    data["cloth"] = {"mesh": str(obj), "transform": MESH_PLACE[scene], "thickness": grid["thickness"],
+                     **{k: grid[k] for k in ("damping", "density", "ks") if k in grid}}
+    path = folder / f"{scene}_mesh.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+def timed(sim: Simulation, seconds: float) -> float:
+    """substeps/s of ``seconds`` of simulated time, once its kernels are loaded"""
+    sim.step(substeps=0)
+    frames = max(1, round(seconds * sim.params.frames_per_sec))
+    start = time.perf_counter()
+    for _ in range(frames):
+        sim.step()
+    return frames * sim.params.simulation_steps / (time.perf_counter() - start)
+
+
+def general_path(points: int, repeats: int, info: dict) -> None:
+    """The ``general_path`` lines: grid path, general path on the grid, general path on an
+    irregular mesh, at the same point count, interleaved, best of ``repeats`` rounds."""
+    from clothsim.procedural import delaunay_square, write_obj
+
+    n = round(math.sqrt(points))
+    threads = numba.get_num_threads()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        # spacing: the closest two points may come of a mesh this dense in a 1 m square
+        mesh = delaunay_square(count=n * n, side=1.0, spacing=0.7 / n, seed=20)
+        obj = write_obj(folder / "irregular.obj", mesh)
+        for scene in MESH_SECONDS:
+            runs = {"grid": lambda t: Simulation.from_file(ROOT / "scenes" / f"{scene}.json", sized(scene, n),
+                                                           threads=t),
+                    "grid_on_general_path": lambda t: Simulation.from_file(
+                        ROOT / "scenes" / f"{scene}.json", sized(scene, n), threads=t, solver_path="mesh"),
+                    "irregular_mesh": lambda t: Simulation.from_file(mesh_scene(scene, obj, folder), threads=t)}
+            best: dict[tuple[str, int], float] = {}
+            sizes = {}
+            for _ in range(repeats):
+                for name, make in runs.items():
+                    for t in sorted({1, threads}):
+                        sim = make(t)
+                        sizes[name] = (sim.model.num_points, sim.model.num_springs, sim.solver.path)
+                        rate = timed(sim, MESH_SECONDS[scene])
+                        best[name, t] = max(best.get((name, t), 0.0), rate)
+            grid = best["grid", 1]
+            for name in runs:
+                points_, springs, path = sizes[name]
+                emit({"bench": "general_path", "scene": scene, "cloth": name, "solver_path": path,
+                      "points": points_, "springs": springs, "simulated_s": MESH_SECONDS[scene],
+                      "substeps_per_s": round(best[name, 1], 1), "of_grid_path": round(best[name, 1] / grid, 3),
+                      "threads": threads, "substeps_per_s_threads": round(best[name, threads], 1),
+                      "threads_gain": round(best[name, threads] / best[name, 1], 3), "rounds": repeats,
+                      **info})
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="50,100,200")
@@ -101,8 +183,14 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-settle", action="store_true",
                     help="leave out the 2-second fall and settle of selfCollision 100x100")
+    ap.add_argument("--no-mesh", action="store_true", help="leave out the general path's comparison")
+    ap.add_argument("--mesh-only", action="store_true", help="only the general path's comparison")
+    ap.add_argument("--mesh-points", type=int, default=10000)
     args = ap.parse_args()
     info = machine()
+    if args.mesh_only:
+        general_path(args.mesh_points, args.repeats, info)
+        return
     threads = numba.get_num_threads()
     # load every compiled variant the runs take (serial and threaded, per set of
     # collider kinds) before any is timed: loading one from the cache takes a
@@ -135,6 +223,8 @@ def main() -> None:
                   "list_rebuilds_per_100_substeps": round(rebuilds, 1),
                   "realtime_factor": round(rate / 2700.0, 3), "peak_rss_mib": round(peak_rss_mib(), 1),
                   **info})
+    if not args.no_mesh:
+        general_path(args.mesh_points, args.repeats, info)
 
 
 if __name__ == "__main__":

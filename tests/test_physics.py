@@ -205,12 +205,13 @@ def stretch_without_provot(sim: Simulation) -> float:
     P = np.ascontiguousarray(sim.positions.T)
     L = np.ascontiguousarray(sim.state.last_positions.T)
     mesh = solver.path == "mesh"
-    F = np.zeros((sim.model.num_springs, 3)) if mesh else force_buffer(solver.springs, n)
+    F = np.zeros((3, n)) if mesh else force_buffer(solver.springs, n)
     worst = 0.0
     for step in range(90 * 30):
         if mesh:
-            meshsprings.mesh_spring_forces(P, knobs, solver.springs, F, 0, len(F))
-            meshsprings.mesh_verlet(P, L, solver.points.free, knobs, solver.springs, F, 0, n)
+            meshsprings.mesh_gravity(knobs, F, 0, n)
+            meshsprings.mesh_spring_forces(P, knobs, solver.springs, F, 0, sim.model.num_springs)
+            meshsprings.mesh_verlet(P, L, solver.points.free, knobs, F, 0, n)
         else:
             integrate(P, L, solver.points.free, knobs, solver.springs, F, 0, n, 0)
         if step % 30 == 29:

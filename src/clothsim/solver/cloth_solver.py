@@ -109,7 +109,7 @@ class ClothSolver:
         model, n = self.model, self.model.num_points
         self.springs = build_mesh_springs(model, self.parts)
         self._points(max(model.size, 1e-9))
-        self._forces = np.zeros((model.num_springs, 3))
+        self._forces = np.zeros((3, n))
         self.lists = NeighbourList.allocate(n, None, None, self.parts)
         starts = [c.start for c in model.cloths] + [n]
         self._cloth_sizes = np.diff(starts)

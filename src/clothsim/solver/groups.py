@@ -104,6 +104,7 @@ class Scratch(NamedTuple):
     L: np.ndarray
     """last positions as coordinate planes [m], float64 (3, N)"""
     F: np.ndarray
-    """the spring forces of :func:`~.springs.integrate`, (6, 3, pad + N)"""
+    """the grid path's spring forces of :func:`~.springs.integrate`, (6, 3, pad + N);
+    the general path's accelerations of the points, (3, N)"""
     masks: np.ndarray
     """each part's Provot bits, uint64 (parts, 2, words): see :func:`~.provot.provot`"""

@@ -5,18 +5,21 @@ fixed offsets between points. Any other model (a cloth from a mesh, several
 cloths in one scene) takes this path: every spring is a pair of point
 indices, so its loads are gathers, not strides.
 
-A substep here is three passes, each cut into ranges that threads may share
-with no two writing one value:
+The points are cut into parts, ranges that threads share (one part: the
+whole model), and the springs into each part's own (both ends in its points)
+and those across parts. A substep here is three passes:
 
-1. :func:`mesh_spring_forces` writes each spring's force over the point mass into
-   ``F`` (S, 3), a range of springs per part;
-2. :func:`mesh_verlet` has each point of a range gather its springs' forces
-   through the incidence lists (``first``/``spring``/``sign``: the CSR of the
-   springs at each point) and take its Verlet step; gathering, rather than
-   adding into both ends of every spring, lets points be split among threads;
+1. :func:`mesh_spring_forces` adds each spring's force over the point mass to
+   its two ends' accelerations ``A`` (3, N), each part its own springs at
+   once, the springs across parts afterwards on one thread;
+2. :func:`mesh_verlet` moves each part's points;
 3. :func:`mesh_provot` shortens the springs over their limit, one after another
-   (Gauss-Seidel, as the CS184 course code does), springs with both ends in
-   a part's points by that part, the springs across parts afterwards.
+   (Gauss-Seidel, as the CS184 course code does), each part its own springs,
+   the springs across parts afterwards.
+
+Adding into both ends of a spring in one loop was faster than writing the
+forces out and gathering them per point (figures: docs/performance.md,
+'General path').
 
 Springs of every cloth are in one list; each names its *set*, ``3 * cloth +
 kind``, which indexes the per-set constants of :class:`~.groups.MeshKnobs`, so
@@ -54,12 +57,6 @@ class MeshSprings(NamedTuple):
     part_start: np.ndarray
     """springs of part t (both ends in its points) are ``part_start[t]:part_start[t+1]``,
     those across parts the last range, int64 (parts + 2,)"""
-    first: np.ndarray
-    """point q's springs are entries ``first[q]:first[q+1]`` of ``spring``, int64 (N + 1,)"""
-    spring: np.ndarray
-    """the springs at each point, int64 (2S,)"""
-    sign: np.ndarray
-    """+1 where the point is the spring's first end, -1 where its second, float64 (2S,)"""
 
 
 def spring_sets(model: Model) -> np.ndarray:
@@ -86,13 +83,8 @@ def build_mesh_springs(model: Model, parts: int) -> MeshSprings:
     free = ~model.pinned
     fa, fb = free[a].astype(np.float64), free[b].astype(np.float64)
     share = np.stack([fa * (1.0 - 0.5 * fb), fb * (1.0 - 0.5 * fa)])
-    ends = np.concatenate([a, b])
-    by_point = np.argsort(ends, kind="stable")
-    spring = np.concatenate([np.arange(len(a)), np.arange(len(a))])[by_point].astype(np.int64)
-    sign = np.concatenate([np.ones(len(a)), -np.ones(len(a))])[by_point]
-    first = np.searchsorted(ends[by_point], np.arange(n + 1)).astype(np.int64)
     out = MeshSprings(a=a, b=b, rest=rest, limit2=(MAX_STRETCH * rest) ** 2, set=spring_sets(model)[order],
-                      share=share, part_start=part_start, first=first, spring=spring, sign=sign)
+                      share=share, part_start=part_start)
     for arr in out:
         arr.setflags(write=False)
     return out
@@ -105,45 +97,57 @@ def _owner(p: np.ndarray, n: int, parts: int) -> np.ndarray:
 
 
 @njit(**KERNEL_OPTIONS)
-def mesh_spring_forces(P, mesh_knobs, mesh_springs, F, lo, hi):
-    """The force over the point mass of springs ``lo:hi`` [m/s²] into ``F`` (S, 3):
-    Hooke's law along the spring, pulling its first end toward its second
-    (``mesh_knobs.k_over_m[set]``, 0 where the kind is off or the cloth's ks is)."""
+def mesh_spring_forces(P, mesh_knobs, mesh_springs, A, lo, hi):
+    """Add the force over the point mass of springs ``lo:hi`` [m/s²] to both ends'
+    accelerations ``A`` (3, N): Hooke's law along the spring, pulling its
+    first end toward its second (``mesh_knobs.k_over_m[set]``, 0 where the
+    kind is off). One part's springs touch only its own points, so parts may
+    add at once; the springs across parts add on one thread."""
     a, b, rest, sets = mesh_springs.a, mesh_springs.b, mesh_springs.rest, mesh_springs.set
     k_over_m = mesh_knobs.k_over_m
     x, y, z = P[0], P[1], P[2]
+    ax, ay, az = A[0], A[1], A[2]
     for s in range(lo, hi):
         i, j = a[s], b[s]
         dx = x[j] - x[i]
         dy = y[j] - y[i]
         dz = z[j] - z[i]
         f = k_over_m[sets[s]] * (1.0 - rest[s] * inv_length(dx * dx + dy * dy + dz * dz))
-        F[s, 0] = f * dx
-        F[s, 1] = f * dy
-        F[s, 2] = f * dz
+        fx, fy, fz = f * dx, f * dy, f * dz
+        ax[i] += fx
+        ay[i] += fy
+        az[i] += fz
+        ax[j] -= fx
+        ay[j] -= fy
+        az[j] -= fz
 
 
 @njit(**KERNEL_OPTIONS)
-def mesh_verlet(P, L, free, mesh_knobs, mesh_springs, F, lo, hi):
-    """Points ``lo:hi`` gather their springs' forces from ``F`` and take their
-    Verlet step, ``x' = x + keep*(x - x_prev) + a dt²`` where ``free`` is 1,
-    ``a`` gravity plus the springs, ``keep`` the point's cloth's (``mesh_knobs.keep`` (N,))."""
+def mesh_verlet(P, L, free, mesh_knobs, A, lo, hi):
+    """Points ``lo:hi`` take their Verlet step, ``x' = x + keep*(x - x_prev) + a dt²``
+    where ``free`` is 1, with ``a`` the accelerations ``A`` (3, N) [m/s²], and
+    leave ``A`` at gravity for the next substep's springs to add to; ``keep``
+    is the point's cloth's (``mesh_knobs.keep`` (N,))."""
     gravity, keep, dt2 = mesh_knobs.gravity, mesh_knobs.keep, mesh_knobs.dt2
-    first, spring, sign = mesh_springs.first, mesh_springs.spring, mesh_springs.sign
-    gx, gy, gz = gravity[0], gravity[1], gravity[2]
-    for q in range(lo, hi):
-        ax, ay, az = gx, gy, gz
-        for e in range(first[q], first[q + 1]):
-            s, w = spring[e], sign[e]
-            ax += w * F[s, 0]
-            ay += w * F[s, 1]
-            az += w * F[s, 2]
-        fq, kq = free[q], keep[q]
-        x0, x1, x2 = P[0, q], P[1, q], P[2, q]
-        P[0, q] = x0 + fq * (kq * (x0 - L[0, q]) + ax * dt2)
-        P[1, q] = x1 + fq * (kq * (x1 - L[1, q]) + ay * dt2)
-        P[2, q] = x2 + fq * (kq * (x2 - L[2, q]) + az * dt2)
-        L[0, q], L[1, q], L[2, q] = x0, x1, x2
+    for c in range(3):
+        xc, lc, ac = P[c], L[c], A[c]
+        g = gravity[c]
+        for q in range(lo, hi):
+            xq = xc[q]
+            xc[q] = xq + free[q] * (keep[q] * (xq - lc[q]) + ac[q] * dt2)
+            lc[q] = xq
+            ac[q] = g
+
+
+@njit(**KERNEL_OPTIONS)
+def mesh_gravity(mesh_knobs, A, lo, hi):
+    """Points ``lo:hi`` of the accelerations ``A`` (3, N) set to gravity [m/s²]."""
+    gravity = mesh_knobs.gravity
+    for c in range(3):
+        ac = A[c]
+        g = gravity[c]
+        for q in range(lo, hi):
+            ac[q] = g
 
 
 @njit(**KERNEL_OPTIONS)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from numba import njit, prange
 
 from .colliders import collide
-from .meshsprings import mesh_provot, mesh_spring_forces, mesh_verlet
+from .meshsprings import mesh_gravity, mesh_provot, mesh_spring_forces, mesh_verlet
 from .selfcollide import self_collide
 from .shared import part_range
 from .step import ADVANCE_OPTIONS, _farthest, _from_planes, _hold, _renamed, _to_planes
@@ -16,7 +16,8 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     """Run ``substeps`` substeps on ``positions``/``last_positions`` (N, 3) [m] in place,
     for a model of any cloths: the general path's twin of :func:`~.step._advance`,
     with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`,
-    ``mesh_knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (S, 3).
+    ``mesh_knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (3, N) the
+    points' accelerations.
 
     Returns (largest squared distance of a point from ``points.center``, inf
     when not finite; the neighbour list's pairs array).
@@ -25,11 +26,11 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     self-collision, the colliders, then the Provot pass. Cut into the parts
     of ``mesh_springs.part_start``: the forces by ranges of springs, the Verlet
     step, the colliders and each part's own Provot springs by ranges of
-    points, the springs across parts last, on one thread. Compiled twice, as
+    points, the springs across parts after the parts, on one thread. Compiled twice, as
     :func:`advance_mesh` (parts one after another) and
     :func:`advance_mesh_parallel` (parts on threads).
     """
-    P, L, F = scratch.P, scratch.L, scratch.F
+    P, L, A = scratch.P, scratch.L, scratch.F
     free, center = points.free, points.center
     handle, handle_pos = control.handle, control.handle_pos
     enabled, simulation_steps = mesh_knobs.enabled, mesh_knobs.simulation_steps
@@ -39,14 +40,14 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     _to_planes(positions, P)
     _to_planes(last_positions, L)
     n = P.shape[1]
-    num_springs = F.shape[0]
+    mesh_gravity(mesh_knobs, A, 0, n)
     for _ in range(substeps):
         for t in prange(parts):
-            s0, s1 = part_range(num_springs, parts, t)
-            mesh_spring_forces(P, mesh_knobs, mesh_springs, F, s0, s1)
+            mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[t], part_start[t + 1])
+        mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[parts], part_start[parts + 1])
         for t in prange(parts):
             lo, hi = part_range(n, parts, t)
-            mesh_verlet(P, L, free, mesh_knobs, mesh_springs, F, lo, hi)
+            mesh_verlet(P, L, free, mesh_knobs, A, lo, hi)
         if handle >= 0:
             _hold(P, handle, handle_pos)
         if self_collision:
