@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import SimulationError
-from .export import write_obj
+from .export import write_model_obj
 from .mesh import compute_normals
 from .model import Cloth, Model, build_scene_model
 from .params import Material, Params
@@ -209,7 +209,7 @@ class Simulation:
         return frames
 
     def export_obj(self, path: str | Path) -> None:
-        write_obj(path, self.positions, self.normals, self.model.uvs, self.model.triangles)
+        write_model_obj(path, self.model, self.positions, self.normals)  # one object per cloth
 
     # ------------------------------------------------------------------ notebooks
 
