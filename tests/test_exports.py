@@ -166,3 +166,13 @@ def test_obj_sequence_of_several_cloths(tmp_path, write_scene, capsys):
     _assert_objects_are_the_cloths(_trimesh_objects(files[-1]), sim, sim.positions)
     rest = Simulation.from_file(scene)
     _assert_objects_are_the_cloths(_trimesh_objects(files[0]), rest, rest.positions)
+
+
+def test_simulation_export_obj_of_several_cloths(tmp_path, write_scene):
+    """Simulation.export_obj: one object per cloth, as write_model_obj"""
+    from clothsim.export import model_obj_text
+
+    sim = Simulation.from_file(_two_cloths(write_scene))
+    sim.export_obj(tmp_path / "s.obj")
+    assert (tmp_path / "s.obj").read_text() == model_obj_text(sim.model, sim.positions, sim.normals)
+    _assert_objects_are_the_cloths(_trimesh_objects(tmp_path / "s.obj"), sim, sim.positions)
