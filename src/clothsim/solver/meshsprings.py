@@ -35,16 +35,16 @@ from numba import njit
 
 from ..model import Model
 from .provot import MAX_STRETCH
-from .shared import KERNEL_OPTIONS, inv_length, part_range
+from .shared import KERNEL_OPTIONS
 
 
 class MeshSprings(NamedTuple):
     """The springs of a model as lists, ordered for the parts that share a substep."""
 
     a: np.ndarray
-    """first end of each spring, int64 (S,)"""
+    """first end of each spring, int32 (S,)"""
     b: np.ndarray
-    """second end, int64 (S,)"""
+    """second end, int32 (S,)"""
     rest: np.ndarray
     """rest length [m], float64 (S,)"""
     limit2: np.ndarray
@@ -83,7 +83,7 @@ def build_mesh_springs(model: Model, parts: int) -> MeshSprings:
     free = ~model.pinned
     fa, fb = free[a].astype(np.float64), free[b].astype(np.float64)
     share = np.stack([fa * (1.0 - 0.5 * fb), fb * (1.0 - 0.5 * fa)])
-    out = MeshSprings(a=a, b=b, rest=rest, limit2=(MAX_STRETCH * rest) ** 2, set=spring_sets(model)[order],
+    out = MeshSprings(a=a.astype(np.int32), b=b.astype(np.int32), rest=rest, limit2=(MAX_STRETCH * rest) ** 2, set=spring_sets(model)[order],
                       share=share, part_start=part_start)
     for arr in out:
         arr.setflags(write=False)
@@ -112,7 +112,11 @@ def mesh_spring_forces(P, mesh_knobs, mesh_springs, A, lo, hi):
         dx = x[j] - x[i]
         dy = y[j] - y[i]
         dz = z[j] - z[i]
-        f = k_over_m[sets[s]] * (1.0 - rest[s] * inv_length(dx * dx + dy * dy + dz * dz))
+        # a double square root and divide: in this scalar loop they cost less than
+        # inv_length's single-precision estimate and its conversions (which pay
+        # off where a loop is vectorised, as the grid's is)
+        # (two ends at one place pull nothing, not NaN)
+        f = k_over_m[sets[s]] * (1.0 - rest[s] / np.sqrt(max(dx * dx + dy * dy + dz * dz, 1e-30)))
         fx, fy, fz = f * dx, f * dy, f * dz
         ax[i] += fx
         ay[i] += fy
@@ -163,7 +167,7 @@ def mesh_provot(P, mesh_springs, enabled, lo, hi):
         dz = P[2, j] - P[2, i]
         d2 = dx * dx + dy * dy + dz * dz
         if d2 > limit2[s] and enabled[sets[s]]:
-            e = 1.0 - np.sqrt(limit2[s]) * inv_length(d2)
+            e = 1.0 - np.sqrt(limit2[s] / d2)
             ea, eb = e * share[0, s], e * share[1, s]
             P[0, i] += ea * dx
             P[1, i] += ea * dy
