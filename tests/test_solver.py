@@ -917,3 +917,67 @@ def test_portable_append_passes_the_list_tests(tmp_path):
                          env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     assert f"{len(PORTABLE_TESTS) + 1} passed" in run.stdout  # one of them is parametrized twice
+
+
+def folded_mesh(count, thickness, squeeze, seed=3, curl=0.0):
+    """(rest positions, positions) of an irregular sheet of about ``count`` points
+    (a Delaunay square, 1 m), squeezed, its far half folded back over the near
+    half, jittered; ``curl`` [m] bends the rest sheet out of its plane"""
+    from clothsim.procedural import delaunay_square
+
+    mesh = delaunay_square(count=count, side=1.0, spacing=0.6 / np.sqrt(count), seed=seed)
+    rest = mesh.vertices + [0.5, 1.0, 0.5]
+    rest[:, 1] += curl * np.sin(np.pi * rest[:, 0])
+    rng = np.random.default_rng(seed)
+    pos = rest * [squeeze, 1, squeeze]
+    half = rest[:, 2] > 0.5
+    pos[half, 2] = 1.0 * squeeze - pos[half, 2]
+    pos[half, 1] += 0.6 * thickness
+    pos += rng.normal(scale=0.15 * thickness, size=pos.shape)
+    return rest, pos
+
+
+@pytest.mark.parametrize("parts", [1, 2])
+@pytest.mark.parametrize("curl", [0.0, 0.05])
+def test_mesh_near_list_and_layout_push_as_the_reference(parts, curl):
+    """on an irregular mesh whose neighbours sit inside the list radius at rest, the
+    build that drops them by the rest layout, with the near list appended, pushes
+    exactly like a brute-force pass: a squeezed, folded, jittered sheet, flat at
+    rest or curled out of its plane (where the projection shortens distances)"""
+    from clothsim.solver.selfcollide.nearlist import mesh_near
+
+    thickness = 0.02
+    rest, pos = folded_mesh(900, thickness, 0.9, curl=curl)
+    n = len(rest)
+    reach = 2 * thickness
+    mesh = mesh_near(rest, [0, n], reach, reach * 1.5)
+    assert mesh is not None and mesh[2].shape[1] > 2 * n  # many neighbours inside the radius
+    free = np.ones(n)
+    expected, hits = reference_self_collision(pos, rest, free, reach, 3)
+    lists = NeighbourList.allocate(n, parts=parts, skin=0.5, mesh=mesh)
+    P = planes(pos)
+    lists, found = collide_in_place(P, rest, free, thickness, 3, lists)
+    assert found == hits > 100
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-12)
+    # the build listed only the pairs the layout keeps, plus the near list
+    plain = NeighbourList.allocate(n, parts=parts, skin=0.5)
+    collide_in_place(planes(pos), rest, free, thickness, 3, plain)
+    assert lists.meta[0] < plain.meta[0] + mesh[2].shape[1]
+
+
+def test_mesh_layout_keeps_cloths_apart_and_drops_only_pairs_near_at_rest():
+    """the rest layout places each cloth apart from the others (no pair of two cloths
+    is dropped), and every pair it drops is within a hair of the list radius at rest"""
+    from clothsim.solver.selfcollide.nearlist import dropped, layout_metric, rest_layout
+
+    rest_a, _ = folded_mesh(400, 0.01, 1.0, seed=1)
+    rest_b = rest_a + [0.0, 0.01, 0.0]  # a second sheet just above the first
+    rest = np.concatenate([rest_a, rest_b])
+    n = len(rest_a)
+    layout32 = rest_layout(rest, [0, n, 2 * n], 0.1).astype(np.float32)
+    metric = layout_metric(0.08)
+    a, b = np.triu_indices(2 * n, 1)
+    gone = dropped(layout32, a, b, metric)
+    assert not np.any(gone & ((a < n) != (b < n)))
+    d = np.linalg.norm(rest[a] - rest[b], axis=1)
+    assert np.all(d[gone] < 0.08 * (1 + 1e-5)) and gone.sum() > 3 * n

@@ -14,6 +14,8 @@ from .groups import Control, Knobs, MeshKnobs, Points, Scratch
 from .meshsprings import build_mesh_springs
 from .meshstep import advance_mesh, advance_mesh_parallel
 from .selfcollide import NeighbourList, near_stencil, skin_factor
+from .selfcollide.nearlist import mesh_near
+from .selfcollide.nearstencil import SKIN_FACTOR
 from .shared import BLOCK
 from .springs import SET_KIND, build_stencil, force_buffer
 from .step import advance, advance_parallel, parts_for
@@ -110,8 +112,10 @@ class ClothSolver:
         self.springs = build_mesh_springs(model, self.parts)
         self._points(max(model.size, 1e-9))
         self._forces = np.zeros((3, n))
-        self.lists = NeighbourList.allocate(n, None, None, self.parts)
         starts = [c.start for c in model.cloths] + [n]
+        reach = 2.0 * self.points.thickness
+        mesh = mesh_near(model.rest_positions, starts, reach, reach * (1.0 + SKIN_FACTOR))
+        self.lists = NeighbourList.allocate(n, None, None, self.parts, SKIN_FACTOR, mesh)
         self._cloth_sizes = np.diff(starts)
         self._advance = advance_mesh if self.parts == 1 else advance_mesh_parallel
 

@@ -77,7 +77,7 @@ def calls(variant: str) -> list:
     from .colliders import collide
     from .groups import Control, Knobs, Points, Scratch
     from .selfcollide import NeighbourList
-    from .selfcollide.collide import _close_up, _copy
+    from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs
     from .selfcollide.drift import _to_single, drift_bound
     from .selfcollide.nearstencil import near_pushes
     from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
@@ -120,6 +120,8 @@ def calls(variant: str) -> list:
             (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
             (_copy, (lists.pos32[:, :n], lists.reference)),
             (_close_up, (lists.pairs, lists.tally, zero)),
+            (_append, (lists.near_pairs, lists.pairs, zero)),
+            (_copy_pairs, (lists.pairs, lists.pairs, zero)),
             (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
             (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
     out += [(gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),

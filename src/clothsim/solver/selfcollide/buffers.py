@@ -77,7 +77,13 @@ class NeighbourList(NamedTuple):
     near_table: np.ndarray
     """the (dr, di) the stencil takes, int64 (NEAR + 1, 2 NEAR + 1)"""
     near_metric: np.ndarray
-    """the :func:`~.nearstencil.grid_metric` of the offsets the list never holds, (4,)"""
+    """the :func:`~.nearstencil.grid_metric` of the offsets the list never holds, or
+    of a mesh's rest layout (:mod:`.nearlist`), (4,)"""
+    layout: np.ndarray
+    """a mesh's rest layout, the two coordinates per point its metric takes in place
+    of grid rows and columns, float32 (2, N), or (2, 0) where the points are a grid"""
+    near_pairs: np.ndarray
+    """the pairs of a mesh's near list (:mod:`.nearlist`), appended at each build, int32 (2, M)"""
     near_masks: np.ndarray
     """each part's bits of stencil pairs inside the reach, uint64 (parts, words)"""
     near_level: np.ndarray
@@ -95,11 +101,14 @@ class NeighbourList(NamedTuple):
     @classmethod
     def allocate(cls, num_points: int, cols: int | None = None,
                  near: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None,
-                 parts: int = 1, skin: float = 0.5) -> NeighbourList:
+                 parts: int = 1, skin: float = 0.5,
+                 mesh: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> NeighbourList:
         """``cols`` and ``near`` (from :func:`~.nearstencil.near_stencil`, with the
         same ``skin``) describe the cloth's grid; without them every pair goes
-        through the list. ``parts``: how many threads may share the work; each
-        has its own scratch and pushes. ``skin``: the fraction of the reach of
+        through the list. ``mesh``: instead, a mesh's (layout, metric, near
+        pairs) of :func:`~.nearlist.mesh_near`, made for the same reach and
+        skin. ``parts``: how many threads may share the work; each has its own
+        scratch and pushes. ``skin``: the fraction of the reach of
         :func:`~.nearstencil.skin_factor`."""
         from .hashgrid import CELLS_PER_POINT, SEARCH_ROWS
         n = num_points
@@ -110,6 +119,9 @@ class NeighbourList(NamedTuple):
             near = (np.zeros(0, np.int64), np.zeros((0, n), np.uint8),
                     np.zeros((NEAR + 1, 2 * NEAR + 1), np.int64), np.zeros(4))
         near_offset, weight, near_table, near_metric = near
+        layout, near_pairs = np.zeros((2, 0), np.float32), np.zeros((2, 0), np.int32)
+        if mesh is not None:
+            layout, near_metric, near_pairs = mesh
         # padded: the single-precision stencil reads up to PAD pairs past the points
         near_weight = np.zeros((len(weight), n + PAD), dtype=np.uint8)
         near_weight[:, :n] = weight
@@ -130,6 +142,8 @@ class NeighbourList(NamedTuple):
             near_weight=near_weight,
             near_table=near_table,
             near_metric=near_metric,
+            layout=layout,
+            near_pairs=near_pairs,
             near_masks=np.zeros((parts, n // BLOCK + 2), dtype=np.uint64),
             near_level=np.zeros((len(near_offset), n // BLOCK + 1), dtype=np.int32),
             pos32=np.zeros((3, n + PAD), dtype=np.float32),

@@ -57,6 +57,7 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     reference, frame, centres = lists.reference, lists.frame, lists.centres
     push, count, meta, tally = lists.push, lists.count, lists.meta, lists.tally
     pos32, extent32, touched = lists.pos32, lists.extent32, lists.touched
+    near = lists.near_pairs
     n = P.shape[1]
     parts = push.shape[0]
     reach = 2.0 * thickness
@@ -94,7 +95,15 @@ def self_collide(P, points, simulation_steps, lists, pairs):
                 break
             size = 2 * most
             pairs = np.empty((2, shares * size), dtype=np.int32)
-        meta[PAIRS] = _close_up(pairs, tally, size)
+        listed = _close_up(pairs, tally, size)
+        if near.shape[1] > 0:  # a mesh's near list, which the build dropped (see nearlist)
+            if listed + near.shape[1] > pairs.shape[1]:
+                grown = np.empty((2, listed + near.shape[1] + n), dtype=np.int32)
+                _copy_pairs(pairs, grown, listed)
+                pairs = grown
+            _append(near, pairs, listed)
+            listed += near.shape[1]
+        meta[PAIRS] = listed
         for c in range(3):
             frame[c] = P[c, 0]
         extent = single_copy(P, frame, pos32, extent32)
@@ -160,6 +169,23 @@ def _close_up(pairs, tally, size):
             pairs[1, total + j] = pairs[1, base + j]
         total += tally[t, 0]
     return total
+
+
+@njit(**KERNEL_OPTIONS)
+def _copy_pairs(src, dst, count):
+    """The first ``count`` pairs of ``src`` into ``dst`` (both (2, capacity))."""
+    for c in range(2):
+        for j in range(count):
+            dst[c, j] = src[c, j]
+
+
+@njit(**KERNEL_OPTIONS)
+def _append(near, pairs, at):
+    """The pairs of ``near`` (2, M) into ``pairs`` from ``at`` on."""
+    for c in range(2):
+        a, b = near[c], pairs[c]
+        for j in range(near.shape[1]):
+            b[at + j] = a[j]
 
 
 @njit(**KERNEL_OPTIONS)

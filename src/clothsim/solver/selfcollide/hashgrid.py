@@ -47,7 +47,8 @@ def sort_into_cells(P, radius, span, lists):
     ``order[k]`` is the point in slot k, ``slot`` the inverse, and the point's
     position from the grid's corner and its row and column on a grid of
     ``cols`` columns are copied to column k of ``sorted_pos`` (5, N + PAD),
-    in single precision: the query's first test reads them, and in single
+    in single precision (a mesh's two coordinates of ``layout`` in place of the
+    row and column, see :mod:`.nearlist`): the query's first test reads them, and in single
     precision it does twice as many at once (see :func:`query_points`).
 
     ``search`` (SEARCH_ROWS, N) gets each point's cell and the rows and columns
@@ -125,17 +126,29 @@ def sort_into_cells(P, radius, span, lists):
     # loops: dividing them out cost two divisions per candidate pair, and
     # counting them along in one loop chained every point to the last
     sx, sy, sz, grid_row, grid_col = sorted_pos[0], sorted_pos[1], sorted_pos[2], sorted_pos[3], sorted_pos[4]
-    for first in range(0, n, cols):
-        row = np.float32(first // cols)
-        for i in range(min(cols, n - first)):
-            p = first + i
+    layout = lists.layout
+    if layout.shape[1] == n:  # a mesh: its rest layout stands for the rows and columns
+        lu, lv = layout[0], layout[1]
+        for p in range(n):
             k = np.uint64(slot[p])
             order[k] = p
             sx[k] = np.float32(x[p] - x0)
             sy[k] = np.float32(y[p] - y0)
             sz[k] = np.float32(z[p] - z0)
-            grid_row[k] = row
-            grid_col[k] = np.float32(i)
+            grid_row[k] = lu[p]
+            grid_col[k] = lv[p]
+    else:
+        for first in range(0, n, cols):
+            row = np.float32(first // cols)
+            for i in range(min(cols, n - first)):
+                p = first + i
+                k = np.uint64(slot[p])
+                order[k] = p
+                sx[k] = np.float32(x[p] - x0)
+                sy[k] = np.float32(y[p] - y0)
+                sz[k] = np.float32(z[p] - z0)
+                grid_row[k] = row
+                grid_col[k] = np.float32(i)
     grid[0], grid[1], grid[2], grid[3] = lo[0], lo[1], lo[2], size
     grid[4], grid[5], grid[6] = nx, ny, nz
     return grid
