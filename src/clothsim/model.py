@@ -275,6 +275,8 @@ def build_mesh_model(spec: MeshClothSpec) -> Model:
                   spring_rest=np.linalg.norm(pos[pairs[:, 0]] - pos[pairs[:, 1]], axis=1), spring_kind=kind,
                   kind_start=np.searchsorted(kind, np.arange(len(SPRING_KINDS) + 1)).astype(np.int64),
                   triangles=parts.triangles.astype(np.int32), uvs=parts.uvs.astype(np.float32))
+    # contiguous, as the grid builder's are: the kernels are compiled for one layout
+    arrays = {k: np.ascontiguousarray(v) for k, v in arrays.items()}
     for arr in arrays.values():
         arr.setflags(write=False)
     cloth = Cloth(0, len(parts.positions), spec.thickness, parts.area, None, parts.width, parts.height,

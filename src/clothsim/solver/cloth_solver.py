@@ -76,7 +76,7 @@ class ClothSolver:
         if self.path == "grid":
             self._build_grid(first)
         else:
-            self._build_mesh()
+            self._build_mesh(first)
         self.scratch = Scratch(P=np.zeros((3, n)), L=np.zeros((3, n)), F=self._forces,
                                masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64))
         kernel_cache.mark_warm(BUILD_VARIANT)
@@ -106,9 +106,11 @@ class ClothSolver:
         self.lists = NeighbourList.allocate(n, cols, near, self.parts, skin)
         self._advance = advance if self.parts == 1 else advance_parallel
 
-    def _build_mesh(self) -> None:
-        """The general path: springs as lists, every pair of self-collision through the list."""
+    def _build_mesh(self, first) -> None:
+        """The general path: springs as lists, self-collision with the mesh's near list."""
         model, n = self.model, self.model.num_points
+        if first is not None and not self.is_compiled(*first):
+            prewarm.start(self.variant(*first))
         self.springs = build_mesh_springs(model, self.parts)
         self._points(max(model.size, 1e-9))
         self._forces = np.zeros((3, n))

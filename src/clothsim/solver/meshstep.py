@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit, prange
 
 from .colliders import collide
@@ -40,7 +41,7 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     _to_planes(positions, P)
     _to_planes(last_positions, L)
     n = P.shape[1]
-    mesh_gravity(mesh_knobs, A, 0, n)
+    mesh_gravity(mesh_knobs, A, np.int64(0), n)  # a variable, not a literal: see docs/architecture.md
     for _ in range(substeps):
         for t in prange(parts):
             mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[t], part_start[t + 1])

@@ -14,8 +14,10 @@ time, never a wrong result, since the first process then compiles that
 kernel itself. ``tests/test_prewarm.py`` checks that the first process
 compiles none of them after a prewarm.
 
-Only the serial substep is prewarmed: the threaded one compiles its parts
-inside numba's parallel lowering, which the kernels' own caches do not serve.
+Only the serial substeps are prewarmed (the grid path's and the general
+path's, "serial..." and "mesh-serial..." variants): the threaded ones compile
+their parts inside numba's parallel lowering, which the kernels' own caches
+do not serve.
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ def start(variant: str) -> subprocess.Popen | None:
     :meth:`~.cloth_solver.ClothSolver.variant`) where it can help: a serial
     variant, two or more cores, and not switched off by CLOTHSIM_PREWARM=0.
     It runs detached from the terminal and ends by itself."""
-    if os.environ.get(PREWARM, "1") == "0" or not variant.startswith("serial"):
+    if os.environ.get(PREWARM, "1") == "0" or not variant.startswith(("serial", "mesh-serial")):
         return None
     try:
         cores = len(os.sched_getaffinity(0))
@@ -88,6 +90,7 @@ def calls(variant: str) -> list:
     from ..scene import PlaneSpec, SphereSpec
 
     features = set(variant.split("+")[1:])
+    mesh = variant.startswith("mesh-")
     rows = cols = 4
     n = rows * cols
     i, j = np.meshgrid(np.arange(cols), np.arange(rows))
@@ -124,12 +127,39 @@ def calls(variant: str) -> list:
             (_copy_pairs, (lists.pairs, lists.pairs, zero)),
             (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
             (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
-    out += [(gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
-            (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero)),
-            (_to_planes, (np.zeros((n, 3)), P)),
+    if mesh:
+        out = [(k, a) for k, a in out if k is not _provot_both] + _mesh_calls(rest, pinned, P, L, points)
+    else:
+        out += [(gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
+                (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero))]
+    out += [(_to_planes, (np.zeros((n, 3)), P)),
             (_from_planes, (P, np.zeros((n, 3)))),
             (vertex_normals, (np.zeros((n, 3)), triangles, np.zeros((n, 3))))]
     return out
+
+
+def _mesh_calls(rest, pinned, P, L, points) -> list:
+    """The general path's own kernels, in the reverse of the order its substep types
+    them, with groups of the types a solver of that path makes (see
+    :meth:`~.cloth_solver.ClothSolver._mesh_knobs`, :func:`~.meshsprings.build_mesh_springs`)."""
+    from ..model import build_model
+    from ..scene import ClothSpec
+    from .groups import MeshKnobs
+    from .meshsprings import build_mesh_springs, mesh_gravity, mesh_provot, mesh_spring_forces, mesh_verlet
+
+    spec = ClothSpec(width=0.3, height=0.3, num_width_points=4, num_height_points=4, thickness=0.01,
+                     orientation=0)
+    springs = build_mesh_springs(build_model(spec), 1)
+    n = P.shape[1]
+    knobs = MeshKnobs(gravity=np.zeros(3), k_over_m=np.ones((1, 3)).ravel(),
+                      enabled=np.ones((1, 3), dtype=bool).ravel(), keep=np.repeat(np.ones(1), n), dt2=1e-6,
+                      simulation_steps=1, self_collision=True)
+    A = np.zeros((3, n))
+    zero, count, s = np.int64(0), np.int64(n), np.int64(len(springs.a))
+    return [(mesh_provot, (P, springs, knobs.enabled, zero, s)),
+            (mesh_verlet, (P, L, points.free, knobs, A, zero, count)),
+            (mesh_spring_forces, (P, knobs, springs, A, zero, s)),
+            (mesh_gravity, (knobs, A, zero, count))]
 
 
 @njit(cache=False)
