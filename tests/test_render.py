@@ -329,8 +329,8 @@ def test_two_cloths_are_two_blobs_where_they_hang(renderer):
     assert (red[:, 0] > red[:, 1] + 20).mean() > 0.95  # the cloth colour: red over green
     for cloth in sim.cloths:
         cx, cy = _projected_centre(cloth.positions, cam, SIZE)
-        assert labels[int(round(cy)), int(round(cx))] in blobs
-    ids = [labels[int(round(c[1])), int(round(c[0]))]
+        assert labels[round(cy), round(cx)] in blobs
+    ids = [labels[round(c[1]), round(c[0])]
            for c in (_projected_centre(cl.positions, cam, SIZE) for cl in sim.cloths)]
     assert ids[0] != ids[1]
 
@@ -354,7 +354,7 @@ def test_every_shader_draws_a_mesh_cloth(renderer, name):
             assert fg[int(cy) - 6:int(cy) + 7, int(cx) - 6:int(cx) + 7].sum() > 10
         return
     assert len(blobs) == 2
-    disc = labels == labels[int(round(centres[0][1])), int(round(centres[0][0]))]
+    disc = labels == labels[round(centres[0][1]), round(centres[0][0])]
     assert disc.sum() > 300
     assert (img[interior(disc)].astype(int).sum(axis=1) > 30).all()
 

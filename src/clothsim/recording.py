@@ -21,12 +21,11 @@ from .trajectory import Trajectory, TrajectoryRecorder
 def npz_arrays(traj: Trajectory) -> dict[str, np.ndarray]:
     """The arrays of the NumPy export (see :class:`FrameRecorder`)."""
     parts = traj.parts
-    return dict(positions=traj.positions, times=traj.times, triangles=traj.triangles, uvs=traj.uvs,
-                scene=np.array(json.dumps(traj.scene)),
-                cloth_names=np.array([c.name for c in parts], dtype=str),
-                cloth_start=np.array([c.start for c in parts] + [parts[-1].stop], dtype=np.int64),
-                cloth_triangle_start=np.array([c.tri_start for c in parts] + [parts[-1].tri_stop],
-                                              dtype=np.int64))
+    return {"positions": traj.positions, "times": traj.times, "triangles": traj.triangles, "uvs": traj.uvs,
+            "scene": np.array(json.dumps(traj.scene)),
+            "cloth_names": np.array([c.name for c in parts], dtype=str),
+            "cloth_start": np.array([c.start for c in parts] + [parts[-1].stop], dtype=np.int64),
+            "cloth_triangle_start": np.array([c.tri_start for c in parts] + [parts[-1].tri_stop], dtype=np.int64)}
 
 
 def _write_npz(path: Path, traj: Trajectory) -> None:
