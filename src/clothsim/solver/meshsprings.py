@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from ..model import Model
-from .provot import MAX_STRETCH
+from .provot import MAX_STRETCH, shorten
 from .shared import KERNEL_OPTIONS
 
 
@@ -167,12 +167,5 @@ def mesh_provot(P, mesh_springs, enabled, lo, hi):
         dz = P[2, j] - P[2, i]
         d2 = dx * dx + dy * dy + dz * dz
         if d2 > limit2[s] and enabled[sets[s]]:
-            e = 1.0 - np.sqrt(limit2[s] / d2)
-            ea, eb = e * share[0, s], e * share[1, s]
-            P[0, i] += ea * dx
-            P[1, i] += ea * dy
-            P[2, i] += ea * dz
-            P[0, j] -= eb * dx
-            P[1, j] -= eb * dy
-            P[2, j] -= eb * dz
+            shorten(P, i, j, np.sqrt(limit2[s]), share[0, s], share[1, s])
 

@@ -74,7 +74,7 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
                 p = first + w * BLOCK + j
                 if batch_s[p] != 0:
                     continue
-                _correct(P, oa + p, ob + p, lim_s[p], wa[p], wb[p])
+                shorten(P, oa + p, ob + p, lim_s[p], wa[p], wb[p])
                 for j in (p - o - first, p + o - first):
                     if 0 <= j < stop - first:
                         again[j // BLOCK] |= np.uint64(1) << np.uint64(j % BLOCK)
@@ -87,11 +87,11 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
                     continue
                 a, b = oa + p, ob + p
                 if gap2(x, y, z, a, x, y, z, b) > lim_s[p] * lim_s[p]:
-                    _correct(P, a, b, lim_s[p], wa[p], wb[p])
+                    shorten(P, a, b, lim_s[p], wa[p], wb[p])
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
-def _correct(P, a, b, lim, wa, wb):
+def shorten(P, a, b, lim, wa, wb):
     """Shorten the spring from point a to point b to ``lim``, moving a by ``wa`` and b
     by ``wb`` of the correction."""
     dx = P[0, b] - P[0, a]
