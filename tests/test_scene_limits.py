@@ -32,8 +32,8 @@ def test_index_0_of_a_lone_collider_object_is_that_object(key):
 
 
 def test_index_0_of_a_lone_object_replaces_it_whole():
-    out = apply_overrides(small_scene(sphere=dict(SPHERE)), ['sphere[0]={"origin": [0, 0, 0], "radius": 0.3, '
-                                                            '"friction": 0}'])
+    out = apply_overrides(small_scene(sphere=dict(SPHERE)), [('sphere[0]={"origin": [0, 0, 0], "radius": 0.3, '
+                                                             '"friction": 0}')])
     assert parse_scene(out).spheres[0].radius == 0.3
 
 

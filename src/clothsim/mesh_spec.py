@@ -17,8 +17,8 @@ import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from .scene_reader import Reader, Vec3, describe
 from .scene_limits import DENSITY_MAX, DENSITY_MIN, KS_MAX, LENGTH_MAX, LENGTH_MIN, SCALE_MAX
+from .scene_reader import Reader, Vec3, describe
 
 if TYPE_CHECKING:
     import numpy as np

@@ -17,8 +17,8 @@ from typing import Any
 
 from .errors import SceneError
 from .mesh_spec import MeshClothSpec, MeshTransform, is_mesh_cloth, parse_mesh_cloth
-from .scene_limits import (DENSITY_MAX, DENSITY_MIN, DEPTH_MAX, FPS_MAX, FPS_MIN, GRAVITY_MAX, KS_MAX,
-                           LENGTH_MAX, LENGTH_MIN, POINTS_MAX, SEED_MAX, STEPS_MAX)
+from .scene_limits import (DENSITY_MAX, DENSITY_MIN, DEPTH_MAX, FPS_MAX, FPS_MIN, GRAVITY_MAX, KS_MAX, LENGTH_MAX,
+                           LENGTH_MIN, POINTS_MAX, SEED_MAX, STEPS_MAX)
 from .scene_reader import Reader as _Reader
 from .scene_reader import Vec3
 from .scene_reader import as_list as _as_list
