@@ -160,3 +160,15 @@ def test_deep_data_given_to_apply_overrides_is_one_error():
         deep = [deep]
     with pytest.raises(SceneError):
         apply_overrides({"cloth": deep}, ["cloth.ks=1"])
+
+
+def test_a_run_that_is_no_longer_finite_says_so_even_where_the_blow_up_limit_is_inf():
+    import numpy as np
+
+    from clothsim import Simulation, SimulationError
+
+    sim = Simulation(parse_scene(small_scene(simulation={"self_collision": False})))
+    sim.solver.runaway2 = math.inf  # what a size near 1e308 made of it
+    sim.state.positions[3] = np.inf
+    with pytest.raises(SimulationError, match="no longer finite"):
+        sim.step()
