@@ -17,7 +17,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from .scene_limits import DENSITY_MAX, DENSITY_MIN, KS_MAX, LENGTH_MAX, LENGTH_MIN, SCALE_MAX
+from .scene_limits import DENSITY_MAX, DENSITY_MIN, KS_MAX, LENGTH_MAX, LENGTH_MIN, POINTS_MAX, SCALE_MAX
 from .scene_reader import Reader, Vec3, describe
 
 if TYPE_CHECKING:
@@ -128,6 +128,7 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
         data = load_mesh(os.path.abspath(shown), transform.apply)
     except MeshFileError as exc:
         raise r.fail(f"{key}.mesh", f"{shown}: {exc}") from None
+    _check_extent(r, data, f"{key}.mesh", shown)
     for count, what in ((data.num_welded, "welded onto another at the same position"),
                         (data.num_unused, "dropped: in no face")):
         if count:
@@ -149,6 +150,16 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
         enable_bending=r.boolean(material["enable_bending"], f"{key}.enable_bending"),
         data=data,
     )
+
+
+def _check_extent(r: Reader, data: MeshData, key: str, shown: str) -> None:
+    """At most POINTS_MAX points, each within ±LENGTH_MAX m after the transform."""
+    if len(data.vertices) > POINTS_MAX:
+        raise r.fail(key, f"{shown}: expected at most {POINTS_MAX:,} points, got {len(data.vertices):,}")
+    extent = float(abs(data.vertices).max()) if len(data.vertices) else 0.0
+    if not extent <= LENGTH_MAX:  # inf and nan too
+        raise r.fail(key, f"{shown}: expected every point within ±{LENGTH_MAX:g} m after the transform, "
+                          f"got one at {extent:g}")
 
 
 def _transform(r: Reader, raw: Any, key: str) -> MeshTransform:

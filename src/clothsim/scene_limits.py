@@ -31,3 +31,5 @@ DEPTH_MAX = 64
 """deepest nesting of lists and objects in a scene document (a scene needs 5)"""
 SCALE_MAX = 1e6
 """largest scale factor of a mesh cloth's transform"""
+FILE_COORD_MAX = 1e12
+"""largest coordinate in a mesh file, before the transform (any unit that scales to metres)"""
