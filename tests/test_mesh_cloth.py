@@ -354,6 +354,11 @@ BAD_MESHES = [
     ("ok.obj", _tri("f 1 2 4 3\n"), {"width": 1.0}, "cloth.width", "has no grid keys"),
     ("ok.obj", _tri("f 1 2 4 3\n"), {"transform": {"scale": 0}}, "cloth.transform.scale", "expected a number > 0"),
     ("ok.obj", _tri("f 1 2 4 3\n"), {"transform": {"spin": 1}}, "cloth.transform.spin", "unknown key"),
+    ("ok.obj", _tri("f 1 2 4 3\n"), {"transform": {"scale": 1e6, "translate": [1e6, 0, 0]}}, "cloth.mesh",
+     "expected every point within ±1e+06 m after the transform, got one at 2e+06"),
+    ("far.obj", _tri("v 1e300 0 0\nf 1 2 5\n"), {}, "cloth.mesh", "vertex 4 has a coordinate beyond ±1e+12"),
+    ("ok.obj", _tri("f 1 2 4 3\n"), {"transform": {"scale": 1e300}}, "cloth.transform.scale", "<= 1e+06"),
+    ("ok.obj", _tri("f 1 2 4 3\n"), {"thickness": 5e-324}, "cloth.thickness", ">= 1e-06"),
 ]
 
 

@@ -59,7 +59,7 @@ BAD = [
     ({"cloth": small_scene()["cloth"], "spheres": {}}, "spheres", "unknown top-level key"),
     ({"plane": {}}, "cloth", "missing required key"),
     (small_scene(cloth={"width": "wide"}), "cloth.width", "expected a number"),
-    (small_scene(cloth={"width": -1}), "cloth.width", "expected a number > 0"),
+    (small_scene(cloth={"width": -1}), "cloth.width", "expected a number >= 1e-06 and <= 1e+06"),
     (small_scene(cloth={"num_width_points": 1}), "cloth.num_width_points", "expected an integer >= 2"),
     (small_scene(cloth={"num_height_points": 2.5}), "cloth.num_height_points", "expected an integer"),
     (small_scene(cloth={"orientation": 2}), "cloth.orientation", "expected 0 (horizontal) or 1"),

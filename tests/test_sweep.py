@@ -88,14 +88,19 @@ def test_rerun_skips_and_protects(local_sweep, capsys):
 
 
 def test_failed_run_is_recorded_and_others_go_on(tmp_path, write_scene, capsys):
-    """a run the stability guard stops is recorded with its error; the rest complete"""
+    """a run the stability guard stops is recorded with its error; the rest complete; the sweep
+    exits 1 and says how many failed, now and on a re-run that redoes nothing"""
     scene = write_scene(small_scene(simulation={"simulation_steps": 1}))
     out = tmp_path / "s"
-    assert main(["sweep", str(scene), "--vary", "cloth.ks=100,1e9", "--seconds", "0.5", "--size", "32x32",
-                 "-o", str(out), "--workers", "1", "--no-progress"]) == 0
+    argv = ["sweep", str(scene), "--vary", "cloth.ks=100,1e9", "--seconds", "0.5", "--size", "32x32",
+            "-o", str(out), "--workers", "1", "--no-progress"]
+    assert main(argv) == 1
+    assert "1 of 2 runs failed" in capsys.readouterr().err
     rows = read_rows(out / "runs.csv")
     assert rows[0]["error"] == "" and rows[0]["png"]
     assert "unstable" in rows[1]["error"] and rows[1]["png"] == ""
+    assert main(argv) == 1
+    assert "1 of 2 runs failed" in capsys.readouterr().err
 
 
 def test_refuses_foreign_folder(tmp_path, write_scene, capsys):

@@ -17,6 +17,7 @@ import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from .scene_limits import DENSITY_MAX, DENSITY_MIN, KS_MAX, LENGTH_MAX, LENGTH_MIN, POINTS_MAX, SCALE_MAX
 from .scene_reader import Reader, Vec3, describe
 
 if TYPE_CHECKING:
@@ -127,6 +128,7 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
         data = load_mesh(os.path.abspath(shown), transform.apply)
     except MeshFileError as exc:
         raise r.fail(f"{key}.mesh", f"{shown}: {exc}") from None
+    _check_extent(r, data, f"{key}.mesh", shown)
     for count, what in ((data.num_welded, "welded onto another at the same position"),
                         (data.num_unused, "dropped: in no face")):
         if count:
@@ -136,18 +138,28 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
     return MeshClothSpec(
         mesh=mesh,
         path=os.path.abspath(shown),
-        thickness=r.number(c["thickness"], f"{key}.thickness", lo=0, lo_open=True),
+        thickness=r.number(c["thickness"], f"{key}.thickness", lo=LENGTH_MIN, hi=LENGTH_MAX),
         transform=transform,
         pinned_vertices=_pinned_vertices(r, c.get("pinned_vertices", []), f"{key}.pinned_vertices", data, shown),
         pinned_region=_region(r, c["pinned_region"], f"{key}.pinned_region") if "pinned_region" in c else None,
         damping=r.number(material["damping"], f"{key}.damping", lo=0, hi=100),
-        density=r.number(material["density"], f"{key}.density", lo=0, lo_open=True),
-        ks=r.number(material["ks"], f"{key}.ks", lo=0),
+        density=r.number(material["density"], f"{key}.density", lo=DENSITY_MIN, hi=DENSITY_MAX),
+        ks=r.number(material["ks"], f"{key}.ks", lo=0, hi=KS_MAX),
         enable_structural=r.boolean(material["enable_structural"], f"{key}.enable_structural"),
         enable_shearing=r.boolean(material["enable_shearing"], f"{key}.enable_shearing"),
         enable_bending=r.boolean(material["enable_bending"], f"{key}.enable_bending"),
         data=data,
     )
+
+
+def _check_extent(r: Reader, data: MeshData, key: str, shown: str) -> None:
+    """At most POINTS_MAX points, each within ±LENGTH_MAX m after the transform."""
+    if len(data.vertices) > POINTS_MAX:
+        raise r.fail(key, f"{shown}: expected at most {POINTS_MAX:,} points, got {len(data.vertices):,}")
+    extent = float(abs(data.vertices).max()) if len(data.vertices) else 0.0
+    if not extent <= LENGTH_MAX:  # inf and nan too
+        raise r.fail(key, f"{shown}: expected every point within ±{LENGTH_MAX:g} m after the transform, "
+                          f"got one at {extent:g}")
 
 
 def _transform(r: Reader, raw: Any, key: str) -> MeshTransform:
@@ -156,15 +168,15 @@ def _transform(r: Reader, raw: Any, key: str) -> MeshTransform:
     scale: float | Vec3 = 1.0
     if "scale" in t:
         if isinstance(t["scale"], list):
-            scale = r.vec3(t["scale"], f"{key}.scale")
+            scale = r.vec3(t["scale"], f"{key}.scale", SCALE_MAX)
             for k, s in enumerate(scale):
                 if s <= 0:
                     raise r.fail(f"{key}.scale[{k}]", f"expected a number > 0, got {s:g}")
         else:
-            scale = r.number(t["scale"], f"{key}.scale", lo=0, lo_open=True)
+            scale = r.number(t["scale"], f"{key}.scale", lo=0, lo_open=True, hi=SCALE_MAX)
     return MeshTransform(scale=scale,
                          rotate=r.vec3(t["rotate"], f"{key}.rotate") if "rotate" in t else (0.0, 0.0, 0.0),
-                         translate=r.vec3(t["translate"], f"{key}.translate") if "translate" in t else (0.0, 0.0, 0.0))
+                         translate=r.vec3(t["translate"], f"{key}.translate", LENGTH_MAX) if "translate" in t else (0.0, 0.0, 0.0))
 
 
 def _pinned_vertices(r: Reader, raw: Any, key: str, data: MeshData, shown: str) -> list[int]:
@@ -185,7 +197,7 @@ def _pinned_vertices(r: Reader, raw: Any, key: str, data: MeshData, shown: str) 
 def _region(r: Reader, raw: Any, key: str) -> tuple[Vec3, Vec3]:
     box = r.obj(raw, key)
     r.keys(box, key, {"min", "max"}, ("min", "max"))
-    lo, hi = r.vec3(box["min"], f"{key}.min"), r.vec3(box["max"], f"{key}.max")
+    lo, hi = r.vec3(box["min"], f"{key}.min", LENGTH_MAX), r.vec3(box["max"], f"{key}.max", LENGTH_MAX)
     for axis, a, b in zip("xyz", lo, hi):
         if a > b:
             raise r.fail(key, f"expected min <= max on every axis, got {axis} min {a:g} > max {b:g}")

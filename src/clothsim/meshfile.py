@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .scene_limits import FILE_COORD_MAX
+
 SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf")
 WELD_TOLERANCE = 1e-9
 """vertices closer than this times the mesh's bounding-box diagonal are welded"""
@@ -192,6 +194,10 @@ def load_mesh(path: str | Path, transform=None) -> MeshData:
         raise MeshFileError("the file holds no faces")
     if not np.isfinite(v).all():
         raise MeshFileError(f"vertex {int(np.argmax(~np.isfinite(v).all(axis=1)))} is not at a finite position")
+    far = np.abs(v).max(axis=1) > FILE_COORD_MAX
+    if far.any():
+        k = int(np.argmax(far))
+        raise MeshFileError(f"vertex {k} has a coordinate beyond ±{FILE_COORD_MAX:g} ({np.abs(v[k]).max():g})")
     corners = f >= 0
     fs = np.sort(np.where(corners, f, -1 - np.arange(4)), axis=1)
     repeated = (fs[:, 1:] == fs[:, :-1]).any(axis=1)

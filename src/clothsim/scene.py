@@ -17,10 +17,13 @@ from typing import Any
 
 from .errors import SceneError
 from .mesh_spec import MeshClothSpec, MeshTransform, is_mesh_cloth, parse_mesh_cloth
+from .scene_limits import (DENSITY_MAX, DENSITY_MIN, DEPTH_MAX, FPS_MAX, FPS_MIN, GRAVITY_MAX, KS_MAX, LENGTH_MAX,
+                           LENGTH_MIN, POINTS_MAX, SEED_MAX, STEPS_MAX)
 from .scene_reader import Reader as _Reader
 from .scene_reader import Vec3
 from .scene_reader import as_list as _as_list
 from .scene_reader import describe as _describe
+from .scene_reader import too_deep as _too_deep
 
 __all__ = ["ClothSpec", "MeshClothSpec", "MeshTransform", "PlaneSpec", "Scene", "SimulationSpec", "SphereSpec",
            "apply_overrides", "load_scene", "parse_scene", "read_scene_json"]
@@ -134,8 +137,11 @@ def _parse_cloths(r: _Reader, raw: Any) -> list[ClothSpec | MeshClothSpec]:
 def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
     c = r.obj(raw, key)
     r.keys(c, key, _CLOTH_KEYS, _CLOTH_REQUIRED)
-    nw = r.integer(c["num_width_points"], f"{key}.num_width_points", lo=2)
-    nh = r.integer(c["num_height_points"], f"{key}.num_height_points", lo=2)
+    nw = r.integer(c["num_width_points"], f"{key}.num_width_points", lo=2, hi=POINTS_MAX // 2)
+    nh = r.integer(c["num_height_points"], f"{key}.num_height_points", lo=2, hi=POINTS_MAX // 2)
+    if nw * nh > POINTS_MAX:
+        raise r.fail(key, f"expected at most {POINTS_MAX:,} points (num_width_points x num_height_points), "
+                          f"got {nw} x {nh} = {nw * nh:,}")
     orientation = r.integer(c["orientation"], f"{key}.orientation")
     if orientation not in (0, 1):
         raise r.fail(f"{key}.orientation", f"expected 0 (horizontal) or 1 (vertical), got {orientation}")
@@ -154,16 +160,16 @@ def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
                               f"j in 0..{nh - 1}), got [{i}, {j}]")
         pinned.append((i, j))
     return ClothSpec(
-        width=r.number(c["width"], f"{key}.width", lo=0, lo_open=True),
-        height=r.number(c["height"], f"{key}.height", lo=0, lo_open=True),
+        width=r.number(c["width"], f"{key}.width", lo=LENGTH_MIN, hi=LENGTH_MAX),
+        height=r.number(c["height"], f"{key}.height", lo=LENGTH_MIN, hi=LENGTH_MAX),
         num_width_points=nw,
         num_height_points=nh,
-        thickness=r.number(c["thickness"], f"{key}.thickness", lo=0, lo_open=True),
+        thickness=r.number(c["thickness"], f"{key}.thickness", lo=LENGTH_MIN, hi=LENGTH_MAX),
         orientation=orientation,
         pinned=pinned,
         damping=r.number(c.get("damping", 0.2), f"{key}.damping", lo=0, hi=100),
-        density=r.number(c.get("density", 150.0), f"{key}.density", lo=0, lo_open=True),
-        ks=r.number(c.get("ks", 5000.0), f"{key}.ks", lo=0),
+        density=r.number(c.get("density", 150.0), f"{key}.density", lo=DENSITY_MIN, hi=DENSITY_MAX),
+        ks=r.number(c.get("ks", 5000.0), f"{key}.ks", lo=0, hi=KS_MAX),
         enable_structural=r.boolean(c.get("enable_structural", True), f"{key}.enable_structural"),
         enable_shearing=r.boolean(c.get("enable_shearing", True), f"{key}.enable_shearing"),
         enable_bending=r.boolean(c.get("enable_bending", True), f"{key}.enable_bending"),
@@ -177,8 +183,8 @@ def _parse_spheres(r: _Reader, raw: Any) -> list[SphereSpec]:
         s = r.obj(item, key)
         r.keys(s, key, {"origin", "radius", "friction"}, ("origin", "radius", "friction"))
         out.append(SphereSpec(
-            origin=r.vec3(s["origin"], key + ".origin"),
-            radius=r.number(s["radius"], key + ".radius", lo=0, lo_open=True),
+            origin=r.vec3(s["origin"], key + ".origin", LENGTH_MAX),
+            radius=r.number(s["radius"], key + ".radius", lo=LENGTH_MIN, hi=LENGTH_MAX),
             friction=r.number(s["friction"], key + ".friction", lo=0, hi=1),
         ))
     return out
@@ -190,16 +196,25 @@ def _parse_planes(r: _Reader, raw: Any) -> list[PlaneSpec]:
         key = "plane" + suffix
         p = r.obj(item, key)
         r.keys(p, key, {"point", "normal", "friction"}, ("point", "normal", "friction"))
-        n = r.vec3(p["normal"], key + ".normal")
-        length = math.sqrt(sum(v * v for v in n))
-        if length == 0:
-            raise r.fail(key + ".normal", "expected a non-zero vector, got [0, 0, 0]")
         out.append(PlaneSpec(
-            point=r.vec3(p["point"], key + ".point"),
-            normal=(n[0] / length, n[1] / length, n[2] / length),
+            point=r.vec3(p["point"], key + ".point", LENGTH_MAX),
+            normal=_unit(r, r.vec3(p["normal"], key + ".normal"), key + ".normal"),
             friction=r.number(p["friction"], key + ".friction", lo=0, hi=1),
         ))
     return out
+
+
+def _unit(r: _Reader, v: Vec3, key: str) -> Vec3:
+    """``v`` over its length, scaled by its largest component first so that neither
+    squaring 1e200 (inf) nor squaring 1e-200 (0) loses it."""
+    scale = max(abs(c) for c in v)
+    if scale == 0:
+        raise r.fail(key, "expected a non-zero vector, got [0, 0, 0]")
+    x, y, z = (c / scale for c in v)
+    length = math.sqrt(x * x + y * y + z * z)
+    if not (math.isfinite(length) and length > 0):
+        raise r.fail(key, f"expected a vector with a direction, got {list(v)}")
+    return (x / length, y / length, z / length)
 
 
 def _parse_simulation(r: _Reader, raw: Any) -> SimulationSpec:
@@ -208,12 +223,12 @@ def _parse_simulation(r: _Reader, raw: Any) -> SimulationSpec:
     d = SimulationSpec()
     return SimulationSpec(
         frames_per_sec=r.number(s.get("frames_per_sec", d.frames_per_sec), "simulation.frames_per_sec",
-                                lo=0, lo_open=True),
+                                lo=FPS_MIN, hi=FPS_MAX),
         simulation_steps=r.integer(s.get("simulation_steps", d.simulation_steps),
-                                   "simulation.simulation_steps", lo=1),
-        gravity=r.vec3(list(s.get("gravity", d.gravity)), "simulation.gravity"),
+                                   "simulation.simulation_steps", lo=1, hi=STEPS_MAX),
+        gravity=r.vec3(s.get("gravity", list(d.gravity)), "simulation.gravity", GRAVITY_MAX),
         self_collision=r.boolean(s.get("self_collision", d.self_collision), "simulation.self_collision"),
-        seed=r.integer(s.get("seed", d.seed), "simulation.seed", lo=0),
+        seed=r.integer(s.get("seed", d.seed), "simulation.seed", lo=0, hi=SEED_MAX),
     )
 
 
@@ -248,9 +263,19 @@ def read_scene_json(path: str | Path) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(source, None, f"cannot read: {exc}") from None
     try:
-        return json.loads(text)
+        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise SceneError(source, None, f"invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    except RecursionError:
+        raise SceneError(source, None, _TOO_DEEP) from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise SceneError(source, None, f"invalid JSON: {exc}".split("; use")[0]) from None
+    if _too_deep(data, DEPTH_MAX):
+        raise SceneError(source, None, _TOO_DEEP)
+    return data
+
+
+_TOO_DEEP = f"expected lists and objects nested at most {DEPTH_MAX} levels deep"
 
 
 def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
@@ -269,16 +294,15 @@ def apply_overrides(data: Any, overrides: list[str] | tuple[str, ...], source: s
     The value is read as JSON when it parses (``500``, ``true``, ``[0,-9.8,0]``)
     and as a string otherwise, so validation later names the key if it is wrong.
     """
+    if _too_deep(data, DEPTH_MAX):
+        raise SceneError(source, None, _TOO_DEEP)
     data = copy.deepcopy(data)
     for item in overrides:
         if "=" not in item:
             raise SceneError(source, None, f"--set expects key=value, got {item!r}")
         key, text = item.split("=", 1)
         key = key.strip()
-        try:
-            value: Any = json.loads(text)
-        except json.JSONDecodeError:
-            value = text
+        value = _override_value(text, source, key)
         steps: list[str | int] = []
         for part in key.split("."):
             m = _PATH_PART.fullmatch(part)
@@ -286,20 +310,27 @@ def apply_overrides(data: Any, overrides: list[str] | tuple[str, ...], source: s
                 raise SceneError(source, key, "--set expects a dotted key such as cloth.ks or sphere[0].radius")
             steps.append(m.group(1))
             steps.extend(int(k) for k in re.findall(r"\[(\d+)\]", m.group(2)))
-        node = data
+        node, parent = data, None
         for depth, step in enumerate(steps[:-1]):
             nxt = steps[depth + 1]
             if isinstance(step, int):
+                if _lone(node, depth, steps):
+                    _check_lone(step, source, key, steps[0])
+                    continue  # cloth[0] of a scene with one cloth object is that object
                 if not isinstance(node, list) or step >= len(node):
                     raise SceneError(source, key, "--set names a list element that the scene does not have")
-                node = node[step]
+                parent, node = (node, step), node[step]
             else:
                 if not isinstance(node, dict):
                     raise SceneError(source, key, "--set names a key inside something that is not an object")
                 if step not in node:
                     node[step] = [] if isinstance(nxt, int) else {}
-                node = node[step]
+                parent, node = (node, step), node[step]
         last = steps[-1]
+        if isinstance(last, int) and parent is not None and _lone(node, len(steps) - 1, steps):
+            _check_lone(last, source, key, steps[0])
+            parent[0][parent[1]] = value  # sphere[0]={...} replaces the lone sphere
+            continue
         if isinstance(last, int):
             if not isinstance(node, list) or last >= len(node):
                 raise SceneError(source, key, "--set names a list element that the scene does not have")
@@ -307,3 +338,34 @@ def apply_overrides(data: Any, overrides: list[str] | tuple[str, ...], source: s
             raise SceneError(source, key, "--set names a key inside something that is not an object")
         node[last] = value
     return data
+
+
+_COLLIDER_KEYS = ("cloth", "sphere", "plane")
+"""the top-level keys that hold one object or a list of them"""
+
+
+def _lone(node: Any, depth: int, steps: list[str | int]) -> bool:
+    """Whether ``node``, reached by ``steps[:depth]``, is the lone object of a key
+    that may hold one object or a list (``sphere`` in ``sphere[0].radius``)."""
+    return depth == 1 and steps[0] in _COLLIDER_KEYS and isinstance(node, dict)
+
+
+def _check_lone(index: int, source: str | None, key: str, name: Any) -> None:
+    if index != 0:
+        raise SceneError(source, key, f"--set names {name}[{index}], but {name} holds one object "
+                                      f"(its index is 0)")
+
+
+def _override_value(text: str, source: str | None, key: str) -> Any:
+    """An override's value: JSON where it parses, else the text itself."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError:
+        return text
+    except RecursionError:
+        raise SceneError(source, key, f"--set: {_TOO_DEEP}") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise SceneError(source, key, f"--set: {exc}".split("; use")[0]) from None
+    if _too_deep(value, DEPTH_MAX):
+        raise SceneError(source, key, f"--set: {_TOO_DEEP}")
+    return value

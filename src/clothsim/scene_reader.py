@@ -25,23 +25,26 @@ class Reader:
 
     def number(self, value: Any, key: str, *, lo: float | None = None, hi: float | None = None,
                lo_open: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(key, f"expected a number, got {describe(value)}")
-        value = float(value)
-        if lo is not None and (value < lo or (lo_open and value == lo)):
-            raise self.fail(key, f"expected a number {'>' if lo_open else '>='} {lo:g}"
-                                 f"{'' if hi is None else f' and <= {hi:g}'}, got {value:g}")
-        if hi is not None and value > hi:
-            raise self.fail(key, f"expected a number <= {hi:g}, got {value:g}")
+        try:
+            value = float(value)
+        except OverflowError:  # an integer beyond a float's range
+            value = math.inf if value > 0 else -math.inf
+        if not math.isfinite(value):
+            raise self.fail(key, f"expected a {_range(lo, hi, lo_open) or 'number'}, got {describe(value)}")
+        if (lo is not None and (value < lo or (lo_open and value == lo))) or (hi is not None and value > hi):
+            raise self.fail(key, f"expected a {_range(lo, hi, lo_open)}, got {value:g}")
         return value
 
-    def integer(self, value: Any, key: str, *, lo: int | None = None) -> int:
+    def integer(self, value: Any, key: str, *, lo: int | None = None, hi: int | None = None) -> int:
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.fail(key, f"expected an integer, got {describe(value)}")
-        if lo is not None and value < lo:
-            raise self.fail(key, f"expected an integer >= {lo}, got {value}")
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            wanted = " and ".join(([f">= {lo}"] if lo is not None else []) + ([f"<= {hi:,}"] if hi is not None else []))
+            raise self.fail(key, f"expected an integer {wanted}, got {describe(value)}")
         return value
 
     def boolean(self, value: Any, key: str) -> bool:
@@ -49,10 +52,12 @@ class Reader:
             raise self.fail(key, f"expected true or false, got {describe(value)}")
         return value
 
-    def vec3(self, value: Any, key: str) -> Vec3:
+    def vec3(self, value: Any, key: str, bound: float | None = None) -> Vec3:
+        """three numbers, each within ``±bound`` where given"""
         if not isinstance(value, list) or len(value) != 3:
             raise self.fail(key, f"expected a list of 3 numbers, got {describe(value)}")
-        x, y, z = (self.number(v, f"{key}[{k}]") for k, v in enumerate(value))
+        lo = None if bound is None else -bound
+        x, y, z = (self.number(v, f"{key}[{k}]", lo=lo, hi=bound) for k, v in enumerate(value))
         return (x, y, z)
 
     def keys(self, obj: dict[str, Any], key: str, allowed: set[str], required: tuple[str, ...]) -> None:
@@ -70,12 +75,21 @@ def describe(value: Any) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
-        return f"the string {value!r}"
+        return f"the string {value!r}" if len(value) <= 60 else f"a string of {len(value)} characters"
     if isinstance(value, list):
         return f"a list of {len(value)}"
     if isinstance(value, dict):
         return "an object"
+    if isinstance(value, int) and abs(value) >= 10**15:
+        return f"an integer of {len(str(abs(value)))} digits"
     return repr(value)
+
+
+def _range(lo: float | None, hi: float | None, lo_open: bool) -> str:
+    """'number > 0 and <= 1e+06', or '' without bounds"""
+    parts = ([f"{'>' if lo_open else '>='} {lo:g}"] if lo is not None else []) + \
+        ([f"<= {hi:g}"] if hi is not None else [])
+    return "number " + " and ".join(parts) if parts else ""
 
 
 def as_list(raw: Any) -> list[tuple[str, Any]]:
@@ -84,3 +98,16 @@ def as_list(raw: Any) -> list[tuple[str, Any]]:
     if isinstance(raw, list):
         return [(f"[{k}]", v) for k, v in enumerate(raw)]
     return [("", raw)]
+
+
+def too_deep(value: Any, limit: int) -> bool:
+    """Whether lists and objects nest more than ``limit`` levels in ``value``
+    (walked without recursion, so any depth can be asked about)."""
+    stack = [(value, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, (list, dict)):
+            if depth > limit:
+                return True
+            stack.extend((v, depth + 1) for v in (node.values() if isinstance(node, dict) else node))
+    return False

@@ -190,7 +190,7 @@ class Simulation:
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None
-        if not far2 <= self.solver.runaway2:
+        if not (np.isfinite(far2) and far2 <= self.solver.runaway2):  # holds where the limit is inf too
             what = "is no longer finite" if not np.isfinite(far2) else (
                 f"has a point {np.sqrt(far2):.3g} m from the start, more than "
                 f"{RUNAWAY_FACTOR:g}x the cloth size")

@@ -51,7 +51,11 @@ EXIT_CODES = {KeyboardInterrupt: 130, Terminated: 143}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:  # a value parser raises UsageError: one line, like every other error
+        args = build_parser().parse_args(argv)
+    except ClothsimError as exc:
+        print(f"clothsim: error: {exc}", file=sys.stderr)
+        return 2
     previous = signal.getsignal(signal.SIGTERM)
     in_main = threading.current_thread() is threading.main_thread()
     if in_main:

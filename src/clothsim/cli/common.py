@@ -13,51 +13,12 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import UsageError
+from .values import SECONDS_MAX, THREADS_MAX, bounded_float, frame_count, positive_int
 
 if TYPE_CHECKING:
     from ..simulation import Simulation
 
 SCENE_HELP = "scene file (CS184 ClothSim JSON), or the name of a standard scene (see 'clothsim scenes')"
-
-
-# ---------------------------------------------------------------------------
-# value parsers
-
-
-def positive_int(text: str) -> int:
-    """An argparse ``type``: a whole number of at least 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, not {text!r}")
-    return value
-
-
-def parse_size(text: str, option: str = "--size") -> tuple[int, int]:
-    """``WIDTHxHEIGHT`` in pixels, each 16..8192."""
-    parts = text.lower().split("x")
-    if len(parts) != 2 or not all(p.isdigit() and 16 <= int(p) <= 8192 for p in parts):
-        raise UsageError(f"{option}: expected WIDTHxHEIGHT with each 16..8192, got {text!r}")
-    return int(parts[0]), int(parts[1])
-
-
-def parse_floats(text: str, count: int, option: str) -> tuple[float, ...]:
-    """``count`` comma-separated numbers, e.g. ``--color 0.8,0.2,0.2``."""
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != count:
-        raise UsageError(f"{option}: expected {count} comma-separated numbers, got {text!r}")
-    return values
-
-
-def check_seconds(seconds: float) -> None:
-    if seconds < 0:
-        raise UsageError(f"--seconds: expected a number >= 0, got {seconds:g}")
 
 
 # ---------------------------------------------------------------------------
@@ -75,13 +36,13 @@ def add_simulation_args(p: argparse.ArgumentParser) -> None:
     """How the one simulation of a command runs: self-collision and threads."""
     p.add_argument("--no-self-collision", action="store_true", help="turn self-collision off")
     p.add_argument("--threads", type=positive_int, default=None, metavar="N",
-                   help="threads that share each substep (default: one below 5,000 points, "
+                   help=f"threads that share each substep, 1..{THREADS_MAX} (default: one below 5,000 points, "
                         "else all cores; NUMBA_NUM_THREADS caps them)")
 
 
 def add_run_args(p: argparse.ArgumentParser, seconds: float) -> None:
     """A headless run of ``--seconds``: outputs, overwriting, progress, per-frame exports."""
-    p.add_argument("--seconds", type=float, default=seconds, metavar="S",
+    p.add_argument("--seconds", type=bounded_float("--seconds", 0.0, SECONDS_MAX), default=seconds, metavar="S",
                    help=f"simulated time before the output (default {seconds:g})")
     p.add_argument("--overwrite", action="store_true", help="replace output files that already exist")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -120,6 +81,8 @@ def load_simulation(args: argparse.Namespace) -> Simulation:
 
     check_exports(args)
     scene = load_scene(scene_path(args.scene), args.overrides)
+    if getattr(args, "seconds", None) is not None:
+        frame_count(args.seconds, scene.simulation.frames_per_sec)  # refuses a count beyond FRAMES_MAX now
     told = not build_compiled()
     if told:
         say_compiling()
@@ -175,7 +138,7 @@ def run_with_progress(sim: Simulation, seconds: float, show: bool, on_frame=None
     (or the first compile): counted in, it made a one-second run of a 50×50
     cloth report a third of its speed.
     """
-    frames = max(0, int(round(seconds * sim.params.frames_per_sec)))
+    frames = frame_count(seconds, sim.params.frames_per_sec)
     sim.step(substeps=0)  # loads (or compiles) the kernels; advances nothing
     bar = progress_bar(frames, "frame", show, leave=False)
     start = time.perf_counter()

@@ -12,8 +12,9 @@ from pathlib import Path
 from ..errors import UsageError
 from ..outputs import OutputError, check_writable, write_atomic
 from ..render.media import IMAGE_SUFFIXES, VIDEO_SUFFIXES
-from .common import (add_scene_args, check_seconds, load_simulation, make_recorder, parse_floats, parse_size,
-                     progress_bar, run_with_progress, summary)
+from .common import add_scene_args, load_simulation, make_recorder, progress_bar, run_with_progress, summary
+from .values import (LOOK_MAX, VIDEO_FPS_MAX, bounded_float, check_seconds, frame_count, parse_floats, parse_size,
+                     parse_sphere_res)
 
 
 def add_parser(sub) -> None:
@@ -32,8 +33,10 @@ def add_parser(sub) -> None:
                    help="image size WIDTHxHEIGHT (default 800x800; for .html the player's size in CSS "
                         "pixels, default the browser window)")
     p.add_argument("--color", default=None, metavar="R,G,B", help="cloth colour, components in [0, 1]")
-    p.add_argument("--normal-scaling", type=float, default=None, metavar="X")
-    p.add_argument("--height-scaling", type=float, default=None, metavar="X")
+    p.add_argument("--normal-scaling", type=bounded_float("--normal-scaling", -LOOK_MAX, LOOK_MAX), default=None,
+                   metavar="X")
+    p.add_argument("--height-scaling", type=bounded_float("--height-scaling", -LOOK_MAX, LOOK_MAX), default=None,
+                   metavar="X")
     p.add_argument("--phong", default=None, metavar="KA,KD,KS,P", help="Blinn-Phong weights and shininess")
     p.add_argument("--camera", default=None, metavar="AZ,EL,DIST",
                    help="azimuth and elevation in degrees, distance in metres")
@@ -43,7 +46,8 @@ def add_parser(sub) -> None:
     p.add_argument("--texture", metavar="IMG", help="colour texture for the Texture shader")
     p.add_argument("--height-map", metavar="IMG", help="height map for Bump and Displacement")
     p.add_argument("--cubemap", metavar="DIR", help="folder with posx, negx, posy, negy, posz, negz images")
-    p.add_argument("--fps", type=float, default=30.0, help="video frames per second (default 30)")
+    p.add_argument("--fps", type=bounded_float("--fps", 0.0, VIDEO_FPS_MAX, lo_open=True), default=30.0,
+                   help=f"video frames per second, up to {VIDEO_FPS_MAX:g} (default 30)")
     p.set_defaults(func=run)
 
 
@@ -93,8 +97,6 @@ PLAYER_REFUSES = (("shader", "--shader", "Phong"), ("shaders", "--shaders", []),
 
 def validate(args: argparse.Namespace) -> str:
     """Check every option before any work; return the output's suffix."""
-    from ..render.geometry import parse_resolution
-
     suffix = Path(args.output).suffix.lower()
     if suffix not in VIDEO_SUFFIXES | IMAGE_SUFFIXES | PLAYER_SUFFIXES:
         raise UsageError(f"{args.output}: expected an output ending in .png, .jpg, .mp4, .gif or .html")
@@ -107,13 +109,13 @@ def validate(args: argparse.Namespace) -> str:
     if suffix in VIDEO_SUFFIXES and args.shader == "all":
         raise UsageError("--shader all makes a contact sheet image; use a .png output")
     check_seconds(args.seconds)
-    if args.fps <= 0:
-        raise UsageError(f"--fps: expected a number > 0, got {args.fps:g}")
     parse_size(args.size or DEFAULT_SIZE)
-    try:
-        args.sphere_res_pair = parse_resolution(args.sphere_res)
-    except ValueError as exc:
-        raise UsageError(f"--sphere-res: {exc}") from None
+    args.sphere_res_pair = parse_sphere_res(args.sphere_res)
+    for text, count, option in ((args.color, 3, "--color"), (args.phong, 4, "--phong"),
+                                (args.camera, 3, "--camera"), (args.light, 3, "--light"),
+                                (args.light_intensity, 3, "--light-intensity")):
+        if text:
+            parse_floats(text, count, option)  # refused here, before the run, when not finite
     return suffix
 
 
@@ -232,7 +234,7 @@ def _render_video(args, sim, view, settings, cam, recorder) -> int:
     from ..render.media import write_animation
 
     every = max(1, int(round(sim.params.frames_per_sec / args.fps)))
-    sim_frames = max(0, int(round(args.seconds * sim.params.frames_per_sec)))
+    sim_frames = frame_count(args.seconds, sim.params.frames_per_sec)
     bar = progress_bar(sim_frames // every + 1, "frame", not args.no_progress, leave=False)
     start = time.perf_counter()
     try:

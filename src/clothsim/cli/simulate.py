@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 
 from ..outputs import check_writable
-from .common import add_scene_args, check_seconds, load_simulation, make_recorder, run_with_progress, summary
+from .common import add_scene_args, load_simulation, make_recorder, run_with_progress, summary
+from .values import check_seconds
 
 
 def add_parser(sub) -> None:

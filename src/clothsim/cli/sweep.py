@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 from ..errors import UsageError
-from .common import add_scene_arg, check_seconds, parse_size, progress_bar, scene_path
+from .common import add_scene_arg, progress_bar, scene_path
+from .values import SECONDS_MAX, THREADS_MAX, bounded_float, bounded_int, check_seconds, frame_count, parse_size
 
 
 def add_parser(sub) -> None:
@@ -17,11 +19,12 @@ def add_parser(sub) -> None:
     add_scene_arg(p, set_help="a value shared by every run")
     p.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2|START:STOP:COUNT", required=True,
                    help="values of one dotted scene key (repeat for a cross product)")
-    p.add_argument("--seconds", type=float, default=2.0, help="simulated time per run (default 2)")
+    p.add_argument("--seconds", type=bounded_float("--seconds", 0.0, SECONDS_MAX), default=2.0,
+                   help="simulated time per run (default 2)")
     p.add_argument("--shader", default="Phong", help="shader of the images (default Phong)")
     p.add_argument("--size", default="400x400", help="image size per run (default 400x400)")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="output folder")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+    p.add_argument("--workers", type=bounded_int("--workers", 1, THREADS_MAX), default=os.cpu_count() or 1,
                    help="local worker processes (default: the number of cores)")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="send the runs to this Dask distributed scheduler instead")
@@ -48,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
                       tuple(args.overrides))
     # validate every combination up front: a typo in a key fails now, not in a worker
     for spec in specs:
-        parse_scene(apply_overrides(data, spec.overrides, scene), scene)
+        parsed = parse_scene(apply_overrides(data, spec.overrides, scene), scene)
+        frame_count(args.seconds, parsed.simulation.frames_per_sec)
     out = SweepDir(args.output, args.force)
     todo, done = out.plan(specs)
     bar = progress_bar(len(specs), "run", not args.no_progress, initial=len(done))
@@ -70,4 +74,10 @@ def run(args: argparse.Namespace) -> int:
     where = args.scheduler or f"{workers} local worker(s)"
     print(f"{len(specs)} runs ({len(todo)} run now on {where}, {len(done)} already done, {len(failed)} failed); "
           f"wrote {args.output}/runs.csv and {args.output}/sheet.png")
+    # a run that failed before and is not redone (same settings) still failed
+    failures = len(failed) + sum(1 for spec in done if (out.load_record(spec) or {}).get("error"))
+    if failures:
+        print(f"clothsim: {failures} of {len(specs)} runs failed (their errors are in {args.output}/runs.csv)",
+              file=sys.stderr)
+        return 1
     return 0

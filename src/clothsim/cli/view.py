@@ -6,7 +6,8 @@ import argparse
 
 from ..errors import UsageError
 from ..outputs import check_writable
-from .common import add_scene_arg, add_simulation_args, load_simulation, parse_size
+from .common import add_scene_arg, add_simulation_args, load_simulation
+from .values import FRAMES_MAX, bounded_int, parse_size
 
 
 def add_parser(sub) -> None:
@@ -18,7 +19,8 @@ def add_parser(sub) -> None:
     p.add_argument("--shaders", action="append", default=[], metavar="DIR",
                    help="folder of Name.vert/Name.frag files searched before the built-in ones")
     p.add_argument("--size", default="1280x800", help="window size WIDTHxHEIGHT (default 1280x800)")
-    p.add_argument("--frames", type=int, metavar="N", help="scripted: run N frames, then exit")
+    p.add_argument("--frames", type=bounded_int("--frames", 1, FRAMES_MAX), metavar="N",
+                   help="scripted: run N frames, then exit")
     p.add_argument("--keys", default="", help='scripted: keys pressed before frames 1, 2, ... e.g. "p,n,r"')
     p.add_argument("--screenshot", metavar="OUT.png", help="scripted: save the last frame, panel included")
     p.add_argument("--overwrite", action="store_true", help="replace an existing screenshot file")

@@ -1,0 +1,35 @@
+"""The bounds on a scene's numbers, in one place.
+
+Each keeps the arithmetic of a run inside what a float64 holds: nothing
+downstream overflows to inf (sizes squared, the blow-up limit, spring forces)
+or divides by a denormal (a width or density of 5e-324), and no count becomes
+an allocation of absurd size. The messages of :mod:`clothsim.scene_reader`
+name them; docs/physics.md lists them for users.
+"""
+
+from __future__ import annotations
+
+LENGTH_MAX = 1e6
+"""largest coordinate or size, in either direction: points, origins, widths, radii [m]"""
+LENGTH_MIN = 1e-6
+"""smallest size: width, height, radius, thickness [m]"""
+GRAVITY_MAX = 1e6
+"""largest gravity component, in either direction [m/s²]"""
+KS_MAX = 1e12
+"""largest spring constant [N/m]"""
+DENSITY_MIN, DENSITY_MAX = 1e-6, 1e6
+"""the range of density [g/cm²]"""
+FPS_MIN, FPS_MAX = 1e-3, 1e4
+"""the range of frames_per_sec"""
+STEPS_MAX = 100_000
+"""most substeps per frame"""
+POINTS_MAX = 4_000_000
+"""most points of a grid cloth (num_width_points x num_height_points)"""
+SEED_MAX = 2**63 - 1
+"""largest seed"""
+DEPTH_MAX = 64
+"""deepest nesting of lists and objects in a scene document (a scene needs 5)"""
+SCALE_MAX = 1e6
+"""largest scale factor of a mesh cloth's transform"""
+FILE_COORD_MAX = 1e12
+"""largest coordinate in a mesh file, before the transform (any unit that scales to metres)"""
