@@ -312,8 +312,9 @@ def _projected_centre(points, camera, size):
 
 def test_two_cloths_are_two_blobs_where_they_hang(renderer):
     """a scene of two grid cloths (one above, one hanging below) renders with
-    Phong as two separate blobs of the cloth colour, each round the projection
-    of its own cloth's centre"""
+    Phong as two separate blobs, each round the projection of its own cloth's
+    centre and in its own colour: the first in the cloth colour (red), the
+    second a hue turned from it (green over red)"""
     from clothsim.scene import parse_scene
 
     from .handmade import two_cloth_scene
@@ -325,14 +326,15 @@ def test_two_cloths_are_two_blobs_where_they_hang(renderer):
     labels, blobs = _blobs(fg)
     assert len(blobs) == 2
     assert not fg[0].any() and not fg[-1].any() and not fg[:, 0].any() and not fg[:, -1].any()
-    red = img[fg].astype(int)
-    assert (red[:, 0] > red[:, 1] + 20).mean() > 0.95  # the cloth colour: red over green
     for cloth in sim.cloths:
         cx, cy = _projected_centre(cloth.positions, cam, SIZE)
         assert labels[round(cy), round(cx)] in blobs
     ids = [labels[round(c[1]), round(c[0])]
            for c in (_projected_centre(cl.positions, cam, SIZE) for cl in sim.cloths)]
     assert ids[0] != ids[1]
+    first, second = (img[labels == k].astype(int) for k in ids)
+    assert (first[:, 0] > first[:, 1] + 20).mean() > 0.95  # the cloth colour: red over green
+    assert (second[:, 1] > second[:, 0] + 20).mean() > 0.95  # the next cloth's: green over red
 
 
 @pytest.mark.parametrize("name", ORDER)

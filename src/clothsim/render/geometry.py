@@ -22,6 +22,19 @@ class Mesh:
     """int32 (T, 3)"""
     lines: np.ndarray | None = None
     """int32 (L, 2) segments for the wireframe; None draws the triangles' edges"""
+    parts: tuple[tuple[int, int], ...] = ()
+    """(first triangle, count) of each cloth, drawn each in its own colour
+    (:func:`cloth_colors`); empty: one part, every triangle"""
+
+
+def cloth_colors(first: tuple[float, float, float], count: int) -> list[tuple[float, float, float]]:
+    """A colour per cloth: ``first`` (the user's colour) for the first, then hues
+    turned from it by the golden angle, so that cloths side by side never share
+    one, at its lightness and saturation."""
+    import colorsys
+
+    h, lum, sat = colorsys.rgb_to_hls(*first)
+    return [first] + [colorsys.hls_to_rgb((h + 0.381966 * k) % 1.0, lum, sat) for k in range(1, count)]
 
 
 def pack_vertices(pos: np.ndarray, normals: np.ndarray, tangents: np.ndarray, uvs: np.ndarray,

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import RenderError
 from . import assets
 from .camera import Light, OrbitCamera
-from .geometry import FLOATS_PER_VERTEX, Mesh
+from .geometry import FLOATS_PER_VERTEX, Mesh, cloth_colors
 from .shaders import ShaderLibrary
 
 BACKGROUND = (0.11, 0.12, 0.15)
@@ -251,8 +251,15 @@ class Renderer:
                     self._vao(settings.shader, prog, 0, "lines", self._cloth_vbo, self._cloth_lines).render(
                         moderngl.LINES, vertices=self._cloth_line_count)
             else:
-                self._vao(settings.shader, prog, 0, "tris", self._cloth_vbo, self._cloth_tris).render(
-                    moderngl.TRIANGLES)
+                vao = self._vao(settings.shader, prog, 0, "tris", self._cloth_vbo, self._cloth_tris)
+                parts = self._cloth.parts
+                if len(parts) <= 1:
+                    vao.render(moderngl.TRIANGLES)
+                else:  # several cloths, each in its own colour
+                    for (first, count), color in zip(parts, cloth_colors(settings.color, len(parts))):
+                        if "u_color" in prog:
+                            prog["u_color"].value = (*color, 1.0)
+                        vao.render(moderngl.TRIANGLES, vertices=3 * count, first=3 * first)
         if self._meshes:
             self._set_uniforms(prog, camera, settings, aspect, settings.wire_color if wire else COLLIDER_COLOR)
             for vbo, tri, edge, ident in self._meshes:

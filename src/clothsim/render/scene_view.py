@@ -41,8 +41,13 @@ def cloth_vertices(sim: Simulation, out: np.ndarray | None = None,
     return pack_vertices(pos, normals, tangents(pos, normals), sim.model.uvs, out)
 
 
+def cloth_parts(sim: Simulation) -> tuple[tuple[int, int], ...]:
+    """(first triangle, count) of each cloth: each is drawn in its own colour"""
+    return tuple((c.tri_start, c.tri_stop - c.tri_start) for c in sim.model.cloths)
+
+
 def cloth_mesh(sim: Simulation) -> Mesh:
-    return Mesh(cloth_vertices(sim), np.asarray(sim.model.triangles), spring_lines(sim))
+    return Mesh(cloth_vertices(sim), np.asarray(sim.model.triangles), spring_lines(sim), cloth_parts(sim))
 
 
 def cloth_size(model, k: int) -> float:
@@ -137,7 +142,8 @@ class SimulationView:
         self._enabled = enabled_kinds(sim.params).tobytes()
         self._tangents = cloth_tangents(sim)
         self._vertices = cloth_vertices(sim, tangents=self._tangents)
-        self.renderer.set_cloth(Mesh(self._vertices, np.asarray(sim.model.triangles), spring_lines(sim)))
+        self.renderer.set_cloth(Mesh(self._vertices, np.asarray(sim.model.triangles), spring_lines(sim),
+                                     cloth_parts(sim)))
         self.renderer.set_colliders(collider_meshes(sim, self.sphere_res))
 
     def set_sphere_res(self, res: tuple[int, int]) -> None:
