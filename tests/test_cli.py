@@ -65,13 +65,15 @@ def test_set_overrides_scene_values(tmp_path, capsys):
     assert out_obj.read_text().count("\nv ") == 120
 
 
-@pytest.mark.parametrize("edit,key", [
-    ({"cloth": {"pinned": [[0, 0], [99, 0]]}}, "cloth.pinned[1]"),
-    ({"cloth": {"density": "heavy"}}, "cloth.density"),
-    ({"wind": 1}, "wind"),
+@pytest.mark.parametrize("edit,key,strict", [
+    ({"cloth": {"pinned": [[0, 0], [99, 0]]}}, "cloth.pinned[1]", ["--strict"]),
+    ({"cloth": {"colour": [1, 1, 1]}}, "cloth.colour", ["--strict"]),
+    ({"cloth": {"density": "heavy"}}, "cloth.density", []),
+    ({"wind": 1}, "wind", []),
 ])
-def test_bad_scene_one_line_exit_2(tmp_path, write_scene, capsys, edit, key):
-    """a bad scene prints one line naming file and key, exits 2, and writes nothing"""
+def test_bad_scene_one_line_exit_2(tmp_path, write_scene, capsys, edit, key, strict):
+    """a bad scene (under --strict also what CS184 ignores) prints one line naming
+    file and key, exits 2, and writes nothing"""
     data = small_scene()
     for k, v in edit.items():
         if k == "cloth":
@@ -80,12 +82,59 @@ def test_bad_scene_one_line_exit_2(tmp_path, write_scene, capsys, edit, key):
             data[k] = v
     scene = write_scene(data)
     out_obj = tmp_path / "never.obj"
-    code, out, err = run(["simulate", scene, "--export", out_obj], capsys)
+    code, out, err = run(["simulate", scene, "--export", out_obj, *strict], capsys)
     assert code == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1 and str(scene) in lines[0] and key in lines[0]
     assert "Traceback" not in err
     assert not out_obj.exists()
+
+
+def clothsim_process(*argv, timeout=300):
+    env = {k: v for k, v in __import__("os").environ.items()}
+    env["CLOTHSIM_PREWARM"] = "0"
+    return subprocess.run([sys.executable, "-m", "clothsim", *map(str, argv)], capture_output=True, text=True,
+                          timeout=timeout, env=env)
+
+
+LENIENT = small_scene(cloth={"pinned": [[0, 0], [15, 0], [40, 0]], "colour": [1, 1, 1], "kss": 10},
+                      sphere={"origin": [0.5, 0.2, 0.5], "radius": 0.2, "friction": 0.3, "fricton": 0.1},
+                      plane={"point": [0, 0, 0], "normal": [0, 1, 0], "friction": 0.5, "offset": 0})
+LENIENT_KEYS = ["cloth.colour", "cloth.kss", "cloth.pinned[2]", "sphere.fricton", "plane.offset"]
+
+
+def test_what_cs184_ignores_runs_with_one_warning_line_each(tmp_path, write_scene):
+    """simulate and render run a scene with keys CS184 ignores (exit 0), one warning
+    line each on stderr naming the file, the key and the nearest known key; with
+    --strict the first of them is one error line and exit 2"""
+    scene = write_scene(LENIENT)
+    out_obj = tmp_path / "c.obj"
+    r = clothsim_process("simulate", scene, "--seconds", "0.02", "--no-progress", "--export", out_obj)
+    assert r.returncode == 0, r.stderr
+    warnings = [line for line in r.stderr.splitlines() if line.startswith("clothsim: warning:")]
+    assert len(warnings) == len(LENIENT_KEYS), r.stderr
+    for line, key in zip(warnings, LENIENT_KEYS):
+        assert f"{scene}: {key}:" in line and "ignored" in line
+    assert "nearest known key: 'ks'" in warnings[1] and "nearest known key: 'friction'" in warnings[3]
+    assert "Traceback" not in r.stderr and out_obj.exists()
+    for command in (["simulate", scene, "--seconds", "0.02"], ["render", scene, "-o", tmp_path / "x.png"]):
+        s = clothsim_process(*command, "--strict")
+        lines = s.stderr.strip().splitlines()
+        assert s.returncode == 2 and len(lines) == 1, s.stderr
+        assert lines[0].startswith("clothsim: error:") and f"{scene}: cloth.colour: unknown key" in lines[0]
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_sweep_warns_once_per_ignored_key_and_strict_refuses(tmp_path, write_scene):
+    """a sweep says each ignored key once (not once per run); --strict refuses before any run"""
+    scene = write_scene(small_scene(cloth={"kss": 10}))
+    r = clothsim_process("sweep", scene, "--vary", "cloth.ks=500,5000", "--seconds", "0.02", "--size", "64x64",
+                         "--workers", "1", "--no-progress", "-o", tmp_path / "out")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count("clothsim: warning:") == 1 and "cloth.kss: unknown key" in r.stderr, r.stderr
+    s = clothsim_process("sweep", scene, "--vary", "cloth.ks=500,5000", "--strict", "-o", tmp_path / "out2")
+    assert s.returncode == 2 and s.stderr.count("\n") == 1 and "cloth.kss: unknown key" in s.stderr
+    assert not (tmp_path / "out2").exists()
 
 
 def test_invalid_json_exit_2(write_scene, capsys):

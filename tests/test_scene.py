@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from clothsim import SceneError, load_scene, parse_scene
+from clothsim import SceneError, SceneWarning, load_scene, parse_scene
 from clothsim.scene import apply_overrides
 
 from .conftest import SCENES, small_scene
@@ -66,9 +66,8 @@ BAD = [
     (small_scene(cloth={"damping": 101}), "cloth.damping", "<= 100"),
     (small_scene(cloth={"ks": -5}), "cloth.ks", ">= 0"),
     (small_scene(cloth={"enable_bending": "yes"}), "cloth.enable_bending", "expected true or false"),
-    (small_scene(cloth={"pinned": [[0, 0], [3, 3], [16, 0]]}), "cloth.pinned[2]", "inside the 16x16 grid"),
     (small_scene(cloth={"pinned": [[0]]}), "cloth.pinned[0]", "expected a pair"),
-    (small_scene(cloth={"colour": 1}), "cloth.colour", "unknown key"),
+    (small_scene(simulation={"frames": 90}), "simulation.frames", "unknown key"),
     (small_scene(sphere={"origin": [0, 0], "radius": 1, "friction": 0}), "sphere.origin",
      "expected a list of 3 numbers"),
     (small_scene(sphere={"origin": [0, 0, 0], "radius": 1}), "sphere.friction", "missing required key"),
@@ -95,6 +94,52 @@ def test_bad_scene_names_key(write_scene, data, key, expected):
     assert err.source == str(path)
     assert expected in str(err)
     assert str(path) in str(err) and "\n" not in str(err)
+
+
+IGNORED = [  # what the CS184 loader ignores: (scene, key, words of the warning)
+    (small_scene(cloth={"colour": [1, 0, 0]}), "cloth.colour", "nearest known key: 'enable_structural'"),
+    (small_scene(cloth={"kss": 500}), "cloth.kss", "nearest known key: 'ks'"),
+    (small_scene(cloth={"pinned": [[0, 0], [3, 3], [16, 0]]}), "cloth.pinned[2]", "inside the 16x16 grid"),
+    (small_scene(sphere={"origin": [0, 0, 0], "radius": 1, "friction": 0, "radiuss": 2}), "sphere.radiuss",
+     "nearest known key: 'radius'"),
+    (small_scene(plane=[{"point": [0, 0, 0], "normal": [0, 1, 0], "friction": 0, "normals": [0, 1, 0]}]),
+     "plane[0].normals", "nearest known key: 'normal'"),
+]
+
+
+@pytest.mark.parametrize("data,key,expected", IGNORED, ids=[i[1] for i in IGNORED])
+def test_what_cs184_ignores_loads_with_one_warning(write_scene, data, key, expected):
+    """an unknown key inside cloth, sphere or plane and a pinned point outside the grid
+    are ignored with one SceneWarning naming file, key (and the nearest known key);
+    under strict each is a SceneError"""
+    path = write_scene(data)
+    with pytest.warns(SceneWarning) as caught:
+        scene = load_scene(path)
+    assert len(caught) == 1
+    warning = caught[0].message
+    assert warning.key == key and warning.source == str(path)
+    assert str(warning).startswith(f"{path}: {key}: ") and expected in str(warning) and "ignored" in str(warning)
+    if key == "cloth.kss":
+        assert scene.cloth.ks == 5000  # the misspelt key sets nothing
+    if key.startswith("cloth.pinned"):
+        assert scene.cloth.pinned == [(0, 0), (3, 3)]  # the point outside pins nothing
+    with pytest.raises(SceneError) as info:
+        load_scene(path, strict=True)
+    assert info.value.key == key and "ignored" not in str(info.value)
+
+
+def test_unknown_mesh_cloth_key_is_a_warning(write_scene):
+    path = write_scene({"cloth": {"mesh": "quad.obj", "thickness": 0.01, "colour": 1}})
+    (path.parent / "quad.obj").write_text(QUAD_OBJ)
+    with pytest.warns(SceneWarning, match=r"cloth.colour: unknown key \(nearest known key: '\w+'\); ignored"):
+        load_scene(path)
+    with pytest.raises(SceneError, match="cloth.colour: unknown key"):
+        load_scene(path, strict=True)
+
+
+def test_a_clean_scene_warns_nothing(write_scene, recwarn):
+    load_scene(write_scene(small_scene(sphere={"origin": [0, 0, 0], "radius": 1, "friction": 0})))
+    assert not [w for w in recwarn if issubclass(w.category, SceneWarning)]
 
 
 def test_invalid_json_gives_line_and_column(write_scene):
@@ -176,7 +221,7 @@ def test_mesh_path_without_a_scene_file_is_the_working_folders(tmp_path, monkeyp
     ({"mesh": 3, "thickness": 0.01}, "cloth.mesh", "expected the name of a mesh file, got 3"),
     ({"mesh": "quad.obj", "thickness": 0.01, "orientation": 0}, "cloth.orientation", "has no grid keys"),
     ({"mesh": "quad.obj", "thickness": 0.01, "pinned": [[0, 0]]}, "cloth.pinned", "drop 'pinned' or 'mesh'"),
-    ({"mesh": "quad.obj", "thickness": 0.01, "colour": 1}, "cloth.colour", "unknown key"),
+    ({"mesh": "quad.obj", "thickness": 0.01, "transform": {"spin": 1}}, "cloth.transform.spin", "unknown key"),
     ({"mesh": "quad.obj", "thickness": 0.01, "ks": -1}, "cloth.ks", ">= 0"),
     ({"mesh": "quad.obj", "thickness": 0.01, "pinned_vertices": 3}, "cloth.pinned_vertices", "expected a list"),
     ({"mesh": "quad.obj", "thickness": 0.01, "pinned_vertices": [1.5]}, "cloth.pinned_vertices[0]",

@@ -7,7 +7,7 @@ try:
 except PackageNotFoundError:  # running from a source tree
     __version__ = "0.0.0+src"
 
-from .errors import ClothsimError, RenderError, SceneError, SimulationError
+from .errors import ClothsimError, RenderError, SceneError, SceneWarning, SimulationError
 from .scene import Scene, load_scene, parse_scene
 
 _LAZY = {"Params": "simulation", "Simulation": "simulation", "Trajectory": "trajectory", "record": "trajectory"}
@@ -25,5 +25,5 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["ClothsimError", "RenderError", "Params", "Scene", "SceneError", "Simulation",
+__all__ = ["ClothsimError", "RenderError", "Params", "Scene", "SceneError", "SceneWarning", "Simulation",
            "SimulationError", "Trajectory", "load_scene", "parse_scene", "record", "__version__"]

@@ -26,6 +26,20 @@ class SceneError(ClothsimError):
         super().__init__(": ".join(parts + [message]))
 
 
+class SceneWarning(UserWarning):
+    """Part of a scene file that is ignored, as the CS184 program ignores it: an
+    unknown key inside ``cloth``, ``sphere`` or ``plane``, a pinned point outside
+    the grid. ``source``, ``key`` as in :class:`SceneError`; under ``strict`` the
+    same item is a :class:`SceneError` instead."""
+
+    def __init__(self, source: str | None, key: str | None, message: str) -> None:
+        self.source = source
+        self.key = key
+        self.message = message
+        parts = [p for p in (source, key) if p]
+        super().__init__(": ".join(parts + [message]))
+
+
 class SimulationError(ClothsimError):
     """The state blew up (non-finite or flew away); says at which frame and why."""
 

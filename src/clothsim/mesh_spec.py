@@ -118,7 +118,7 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
         if name in GRID_KEYS:
             raise r.fail(f"{key}.{name}", "a mesh cloth (one with 'mesh') has no grid keys; "
                                           f"drop {name!r} or 'mesh'")
-    r.keys(c, key, MESH_KEYS, ("mesh", "thickness"))
+    r.keys(c, key, MESH_KEYS, ("mesh", "thickness"), lenient=True)
     mesh = c["mesh"]
     if not isinstance(mesh, str) or not mesh:
         raise r.fail(f"{key}.mesh", f"expected the name of a mesh file, got {describe(mesh)}")

@@ -136,7 +136,7 @@ def _parse_cloths(r: _Reader, raw: Any) -> list[ClothSpec | MeshClothSpec]:
 
 def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
     c = r.obj(raw, key)
-    r.keys(c, key, _CLOTH_KEYS, _CLOTH_REQUIRED)
+    r.keys(c, key, _CLOTH_KEYS, _CLOTH_REQUIRED, lenient=True)
     nw = r.integer(c["num_width_points"], f"{key}.num_width_points", lo=2, hi=POINTS_MAX // 2)
     nh = r.integer(c["num_height_points"], f"{key}.num_height_points", lo=2, hi=POINTS_MAX // 2)
     if nw * nh > POINTS_MAX:
@@ -155,9 +155,10 @@ def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
             raise r.fail(pkey, f"expected a pair [i, j], got {_describe(p)}")
         i = r.integer(p[0], pkey + "[0]")
         j = r.integer(p[1], pkey + "[1]")
-        if not (0 <= i < nw and 0 <= j < nh):
-            raise r.fail(pkey, f"expected a point inside the {nw}x{nh} grid (i in 0..{nw - 1}, "
-                              f"j in 0..{nh - 1}), got [{i}, {j}]")
+        if not (0 <= i < nw and 0 <= j < nh):  # CS184 pins nothing for it
+            r.ignore(pkey, f"expected a point inside the {nw}x{nh} grid (i in 0..{nw - 1}, "
+                           f"j in 0..{nh - 1}), got [{i}, {j}]")
+            continue
         pinned.append((i, j))
     return ClothSpec(
         width=r.number(c["width"], f"{key}.width", lo=LENGTH_MIN, hi=LENGTH_MAX),
@@ -181,7 +182,7 @@ def _parse_spheres(r: _Reader, raw: Any) -> list[SphereSpec]:
     for suffix, item in _as_list(raw):
         key = "sphere" + suffix
         s = r.obj(item, key)
-        r.keys(s, key, {"origin", "radius", "friction"}, ("origin", "radius", "friction"))
+        r.keys(s, key, {"origin", "radius", "friction"}, ("origin", "radius", "friction"), lenient=True)
         out.append(SphereSpec(
             origin=r.vec3(s["origin"], key + ".origin", LENGTH_MAX),
             radius=r.number(s["radius"], key + ".radius", lo=LENGTH_MIN, hi=LENGTH_MAX),
@@ -195,7 +196,7 @@ def _parse_planes(r: _Reader, raw: Any) -> list[PlaneSpec]:
     for suffix, item in _as_list(raw):
         key = "plane" + suffix
         p = r.obj(item, key)
-        r.keys(p, key, {"point", "normal", "friction"}, ("point", "normal", "friction"))
+        r.keys(p, key, {"point", "normal", "friction"}, ("point", "normal", "friction"), lenient=True)
         out.append(PlaneSpec(
             point=r.vec3(p["point"], key + ".point", LENGTH_MAX),
             normal=_unit(r, r.vec3(p["normal"], key + ".normal"), key + ".normal"),
@@ -232,9 +233,14 @@ def _parse_simulation(r: _Reader, raw: Any) -> SimulationSpec:
     )
 
 
-def parse_scene(data: Any, source: str | None = None) -> Scene:
-    """Validate a decoded JSON document; raise :class:`SceneError` on the first fault."""
-    r = _Reader(source)
+def parse_scene(data: Any, source: str | None = None, strict: bool = False) -> Scene:
+    """Validate a decoded JSON document; raise :class:`SceneError` on the first fault.
+
+    What the CS184 program ignores (an unknown key inside ``cloth``, ``sphere`` or
+    ``plane``, a pinned point outside the grid) is ignored here too, each item
+    with a :class:`~clothsim.errors.SceneWarning`, or is a SceneError when ``strict``.
+    """
+    r = _Reader(source, strict)
     if not isinstance(data, dict):
         raise r.fail(None, f"expected a JSON object at the top level, got {_describe(data)}")
     for name in data:
@@ -278,11 +284,25 @@ def read_scene_json(path: str | Path) -> dict[str, Any]:
 _TOO_DEEP = f"expected lists and objects nested at most {DEPTH_MAX} levels deep"
 
 
-def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
-    """Load and validate a scene file, applying ``key=value`` overrides first."""
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = (), strict: bool = False) -> Scene:
+    """Load and validate a scene file, applying ``key=value`` overrides first.
+
+    Lenient as the CS184 loader is: an unknown key inside ``cloth``, ``sphere`` or
+    ``plane`` (a student's extra key, a typo) and a pinned point outside the grid
+    are ignored, one :class:`~clothsim.errors.SceneWarning` each, naming the file,
+    the key (and the nearest known key); with ``strict`` they are
+    :class:`SceneError` like any other fault.
+
+    They are warnings of the :mod:`warnings` module, not log records, because
+    that is what a library's caller already controls without setting anything
+    up: shown once by default in a script or notebook, caught by
+    ``warnings.catch_warnings``/``pytest.warns``, turned into exceptions by
+    ``warnings.simplefilter("error", SceneWarning)``. The ``clothsim`` command
+    prints each as one line ``clothsim: warning: FILE: KEY: ...`` on stderr.
+    """
     data = read_scene_json(path)
     data = apply_overrides(data, overrides, str(path))
-    return parse_scene(data, str(path))
+    return parse_scene(data, str(path), strict)
 
 
 _PATH_PART = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)")

@@ -3,20 +3,33 @@
 
 from __future__ import annotations
 
+import difflib
 import math
+import warnings
 from typing import Any
 
-from .errors import SceneError
+from .errors import SceneError, SceneWarning
 
 Vec3 = tuple[float, float, float]
 
 
 class Reader:
-    def __init__(self, source: str | None) -> None:
+    """``strict``: the items the CS184 program ignores (see :meth:`ignore`) are
+    errors too."""
+
+    def __init__(self, source: str | None, strict: bool = False) -> None:
         self.source = source
+        self.strict = strict
 
     def fail(self, key: str | None, message: str) -> SceneError:
         return SceneError(self.source, key, message)
+
+    def ignore(self, key: str, message: str) -> None:
+        """An item that CS184 ignores: a :class:`SceneWarning` (``message`` and ", ignored"),
+        or under ``strict`` the SceneError of ``message``."""
+        if self.strict:
+            raise self.fail(key, message)
+        warnings.warn(SceneWarning(self.source, key, message + "; ignored"), stacklevel=2)
 
     def obj(self, value: Any, key: str) -> dict[str, Any]:
         if not isinstance(value, dict):
@@ -60,9 +73,18 @@ class Reader:
         x, y, z = (self.number(v, f"{key}[{k}]", lo=lo, hi=bound) for k, v in enumerate(value))
         return (x, y, z)
 
-    def keys(self, obj: dict[str, Any], key: str, allowed: set[str], required: tuple[str, ...]) -> None:
+    def keys(self, obj: dict[str, Any], key: str, allowed: set[str], required: tuple[str, ...],
+             lenient: bool = False) -> None:
+        """Every key of ``obj`` in ``allowed`` and every ``required`` one there. ``lenient``
+        (``cloth``, ``sphere``, ``plane``, whose unknown keys CS184 ignores): an unknown key
+        is ignored with a warning naming the nearest known key, an error only under ``strict``."""
         for name in obj:
             if name not in allowed:
+                if lenient:
+                    nearest = difflib.get_close_matches(name, sorted(allowed), n=1, cutoff=0.0)
+                    self.ignore(f"{key}.{name}", "unknown key" + (f" (nearest known key: {nearest[0]!r})"
+                                                                 if nearest else ""))
+                    continue
                 raise self.fail(f"{key}.{name}", f"unknown key; expected one of {', '.join(sorted(allowed))}")
         for name in required:
             if name not in obj:

@@ -102,8 +102,9 @@ class Simulation:
 
     @classmethod
     def from_file(cls, path: str | Path, overrides: list[str] | tuple[str, ...] = (),
-                  threads: int | None = None, solver_path: str = "auto") -> Simulation:
-        return cls(load_scene(path, overrides), threads, solver_path)
+                  threads: int | None = None, solver_path: str = "auto", strict: bool = False) -> Simulation:
+        """The simulation of a scene file (``strict`` as in :func:`~clothsim.scene.load_scene`)."""
+        return cls(load_scene(path, overrides, strict), threads, solver_path)
 
     # ------------------------------------------------------------------ state
 

@@ -8,7 +8,8 @@ library, so ``clothsim --help`` and ``--version`` answer at once; each
 ``run`` imports what its work needs.
 
 Every :class:`~clothsim.errors.ClothsimError` becomes one line on stderr
-and exit code 2.
+and exit code 2; every :class:`~clothsim.errors.SceneWarning` one line
+``clothsim: warning: ...`` on stderr, each time it is raised.
 """
 
 from __future__ import annotations
@@ -17,10 +18,11 @@ import argparse
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Sequence
 
 from .. import __version__
-from ..errors import ClothsimError
+from ..errors import ClothsimError, SceneWarning
 from . import render, scenes, simulate, sweep, view
 
 SUBCOMMANDS = (simulate, render, sweep, view, scenes)
@@ -61,7 +63,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if in_main:
         signal.signal(signal.SIGTERM, _terminate)
     try:
-        return args.func(args)
+        with warnings.catch_warnings():  # restores the filters and showwarning on the way out
+            warnings.simplefilter("always", SceneWarning)
+            warnings.showwarning = _one_line(warnings.showwarning)
+            return args.func(args)
     except ClothsimError as exc:
         print(f"clothsim: error: {exc}", file=sys.stderr)
         return 2
@@ -76,6 +81,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if in_main:
             signal.signal(signal.SIGTERM, previous)
+
+
+def _one_line(show):
+    """``warnings.showwarning`` that prints a SceneWarning as one line and leaves the others to ``show``."""
+    def showwarning(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, SceneWarning):
+            print(f"clothsim: warning: {message}", file=sys.stderr, flush=True)
+        else:
+            show(message, category, filename, lineno, file, line)
+    return showwarning
 
 
 def _stopped_by(exc: BaseException | None) -> type | None:

@@ -30,6 +30,9 @@ def add_scene_arg(p: argparse.ArgumentParser, set_help: str | None = None) -> No
     p.add_argument("scene", help=SCENE_HELP)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=set_help or "override a scene value by its dotted key, e.g. cloth.ks=500 (repeatable)")
+    p.add_argument("--strict", action="store_true",
+                   help="refuse what the CS184 loader ignores (and clothsim otherwise ignores with a warning): "
+                        "an unknown key inside cloth, sphere or plane, a pinned point outside the grid")
 
 
 def add_simulation_args(p: argparse.ArgumentParser) -> None:
@@ -80,7 +83,7 @@ def load_simulation(args: argparse.Namespace) -> Simulation:
     from ..solver.cloth_solver import build_compiled
 
     check_exports(args)
-    scene = load_scene(scene_path(args.scene), args.overrides)
+    scene = load_scene(scene_path(args.scene), args.overrides, getattr(args, "strict", False))
     if getattr(args, "seconds", None) is not None:
         frame_count(args.seconds, scene.simulation.frames_per_sec)  # refuses a count beyond FRAMES_MAX now
     told = not build_compiled()

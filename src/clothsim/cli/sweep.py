@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 
-from ..errors import UsageError
+from ..errors import SceneWarning, UsageError
 from .common import add_scene_arg, progress_bar, scene_path
 from .values import SECONDS_MAX, THREADS_MAX, bounded_float, bounded_int, check_seconds, frame_count, parse_size
 
@@ -49,10 +50,15 @@ def run(args: argparse.Namespace) -> int:
     data = read_scene_json(scene)
     specs = plan_runs(data, scene, args.vary, args.seconds, args.shader, parse_size(args.size),
                       tuple(args.overrides))
-    # validate every combination up front: a typo in a key fails now, not in a worker
-    for spec in specs:
-        parsed = parse_scene(apply_overrides(data, spec.overrides, scene), scene)
-        frame_count(args.seconds, parsed.simulation.frames_per_sec)
+    # validate every combination up front: a typo in a key fails now, not in a worker;
+    # what is ignored is said once, not once per run (the workers say nothing)
+    with warnings.catch_warnings(record=True) as ignored:
+        warnings.simplefilter("always", SceneWarning)
+        for spec in specs:
+            parsed = parse_scene(apply_overrides(data, spec.overrides, scene), scene, args.strict)
+            frame_count(args.seconds, parsed.simulation.frames_per_sec)
+    for text in dict.fromkeys(str(w.message) for w in ignored if issubclass(w.category, SceneWarning)):
+        print(f"clothsim: warning: {text}", file=sys.stderr)
     out = SweepDir(args.output, args.force)
     todo, done = out.plan(specs)
     bar = progress_bar(len(specs), "run", not args.no_progress, initial=len(done))

@@ -6,6 +6,7 @@ import io
 import multiprocessing
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
@@ -29,7 +30,7 @@ def run_one(spec: RunSpec) -> RunResult:
 
     Never raises for a bad run: the error is returned, so the sweep goes on.
     """
-    from ..errors import ClothsimError
+    from ..errors import ClothsimError, SceneWarning
     from ..export import model_obj_text
     from ..metrics import measure
     from ..scene import apply_overrides, parse_scene
@@ -38,7 +39,9 @@ def run_one(spec: RunSpec) -> RunResult:
     start = time.perf_counter()
     result = RunResult(spec)
     try:
-        scene = parse_scene(apply_overrides(spec.scene, spec.overrides, spec.source), spec.source)
+        with warnings.catch_warnings():  # what is ignored the sweep said once, before the runs
+            warnings.simplefilter("ignore", SceneWarning)
+            scene = parse_scene(apply_overrides(spec.scene, spec.overrides, spec.source), spec.source)
         sim = Simulation(scene, threads=1)  # the sweep runs in parallel already
         frames = sim.run(spec.seconds)
         result.record = {**measure(sim), "frames": frames}
