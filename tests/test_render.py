@@ -213,6 +213,42 @@ def test_cli_broken_shader_exit_2(tmp_path, capsys):
     assert code == 2 and "Bad.frag: line 2" in err and not (tmp_path / "x.png").exists()
 
 
+SKELETON_VERT = "#version 330\nuniform mat4 u_view_projection;\nin vec4 in_position;\nvoid main() { }\n"
+EMPTY_VERT = "#version 330\nvoid main() { }\n"
+EMPTY_FRAG = "#version 330\nout vec4 out_color;\nvoid main() { }\n"
+
+
+@pytest.mark.parametrize("vert", [EMPTY_VERT, SKELETON_VERT], ids=["no-attributes", "unused-attribute"])
+def test_a_shader_that_reads_no_attributes_draws_nothing(tmp_path, draped, vert):
+    """the course skeleton (an empty main(), which compiles; its declared inputs
+    unused, so the linker drops them) draws nothing, cloth and colliders, instead
+    of failing in moderngl"""
+    (tmp_path / "Default.vert").write_text(vert)
+    (tmp_path / "Skeleton.frag").write_text(EMPTY_FRAG)
+    r = Renderer(size=SIZE, shaders=ShaderLibrary([tmp_path]))
+    for name in ("Skeleton",):
+        img = render(r, draped, shader=name)
+        assert not foreground(img).any(), name  # the background alone
+    r.release()
+
+
+def test_cli_skeleton_shader_exits_0(tmp_path):
+    """clothsim render with the skeleton shaders writes an image of the background, exit 0"""
+    import subprocess
+    import sys
+
+    from PIL import Image
+
+    (tmp_path / "Default.vert").write_text(EMPTY_VERT)
+    (tmp_path / "Skeleton.frag").write_text(EMPTY_FRAG)
+    out = tmp_path / "x.png"
+    run = subprocess.run([sys.executable, "-m", "clothsim", "render", str(SCENES / "sphere.json"), "-o", str(out),
+                          "--seconds", "0.02", "--size", "64x64", "--shaders", str(tmp_path), "--shader", "Skeleton"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+    assert not foreground(np.asarray(Image.open(out))).any()
+
+
 @pytest.mark.parametrize("suffix", ["gif", "mp4"])
 def test_cli_video(tmp_path, capsys, suffix):
     """an animation has one image per shown frame and the cloth moves between them"""

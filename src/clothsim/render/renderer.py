@@ -206,7 +206,11 @@ class Renderer:
                     names.append(attr)
                 else:
                     fmt.append(f"{nbytes}x")
-            self._vaos[key] = self.ctx.vertex_array(prog, [(vbo, " ".join(fmt), *names)], ibo, index_element_size=4)
+            # a program that reads no attribute (an empty main(), the course skeleton) gets a
+            # vertex array without content: moderngl refuses a buffer that feeds nothing, but
+            # draws an empty one, with the index buffer's count of vertices
+            content = [(vbo, " ".join(fmt), *names)] if names else []
+            self._vaos[key] = self.ctx.vertex_array(prog, content, ibo, index_element_size=4)
         return self._vaos[key]
 
     # ------------------------------------------------------------ drawing
