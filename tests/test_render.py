@@ -179,6 +179,49 @@ def test_user_shader_folder_loads(tmp_path, renderer, draped):
     r.release()
 
 
+GREEN_VERT = """#version 330
+uniform mat4 u_model;
+uniform mat4 u_view_projection;
+in vec4 in_position;
+out vec4 v_tint;
+void main() {
+    v_tint = vec4(0.0, 1.0, 0.0, 1.0);
+    gl_Position = u_view_projection * u_model * in_position;
+}
+"""
+TINT_FRAG = "#version 330\nin vec4 v_tint;\nout vec4 out_color;\nvoid main() { out_color = v_tint; }\n"
+
+
+def test_user_wireframe_frag_pairs_with_the_users_default_vert(tmp_path, draped):
+    """as in CS184, a user's Wireframe.frag without Wireframe.vert takes the user's
+    Default.vert (whose output it reads: with our Wireframe.vert it would not link);
+    our own shaders keep their pairs"""
+    (tmp_path / "Default.vert").write_text(GREEN_VERT)
+    (tmp_path / "Wireframe.frag").write_text(TINT_FRAG)
+    lib = ShaderLibrary([tmp_path])
+    assert lib.sources("Wireframe") == (tmp_path / "Default.vert", tmp_path / "Wireframe.frag")
+    assert lib.sources("Displacement")[0].parent != tmp_path  # ours, beside its .frag
+    r = Renderer(size=SIZE, shaders=lib)
+    img = render(r, cloth_only(draped), shader="Wireframe")
+    lines = foreground(img)
+    assert lines.mean() > 0.02
+    pure = img[lines]
+    assert (pure[:, 1] > 2 * pure[:, 0] + 20).mean() > 0.9  # the user's green lines
+    r.release()
+
+
+def test_a_users_own_vert_beats_their_default_vert(tmp_path):
+    (tmp_path / "Default.vert").write_text(GREEN_VERT)
+    (tmp_path / "Wireframe.vert").write_text(GREEN_VERT)
+    (tmp_path / "Wireframe.frag").write_text(TINT_FRAG)
+    other = tmp_path / "more"
+    other.mkdir()
+    (other / "Bump.frag").write_text(TINT_FRAG)
+    lib = ShaderLibrary([other, tmp_path])
+    assert lib.sources("Wireframe")[0] == tmp_path / "Wireframe.vert"
+    assert lib.sources("Bump")[0] == tmp_path / "Default.vert"  # any user folder's, before ours
+
+
 def test_broken_shader_names_file_and_line(tmp_path):
     """a shader that does not compile raises RenderError with the file and line"""
     (tmp_path / "Broken.frag").write_text("#version 330\nout vec4 c;\nvoid main() {\n  c = vec4(1.0) + nope;\n}\n")
@@ -221,12 +264,13 @@ EMPTY_FRAG = "#version 330\nout vec4 out_color;\nvoid main() { }\n"
 @pytest.mark.parametrize("vert", [EMPTY_VERT, SKELETON_VERT], ids=["no-attributes", "unused-attribute"])
 def test_a_shader_that_reads_no_attributes_draws_nothing(tmp_path, draped, vert):
     """the course skeleton (an empty main(), which compiles; its declared inputs
-    unused, so the linker drops them) draws nothing, cloth and colliders, instead
-    of failing in moderngl"""
+    unused, so the linker drops them) draws nothing, cloth, wireframe and colliders,
+    instead of failing in moderngl"""
     (tmp_path / "Default.vert").write_text(vert)
     (tmp_path / "Skeleton.frag").write_text(EMPTY_FRAG)
+    (tmp_path / "Wireframe.frag").write_text(EMPTY_FRAG)  # pairs with the user's Default.vert
     r = Renderer(size=SIZE, shaders=ShaderLibrary([tmp_path]))
-    for name in ("Skeleton",):
+    for name in ("Skeleton", "Wireframe"):
         img = render(r, draped, shader=name)
         assert not foreground(img).any(), name  # the background alone
     r.release()

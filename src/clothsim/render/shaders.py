@@ -2,7 +2,10 @@
 
 As in CS184, ``Name.frag`` pairs with ``Name.vert`` when that exists and with
 ``Default.vert`` otherwise. A user's folder is searched before ours, so a
-course student's shader files run unchanged and may replace ours.
+course student's shader files run unchanged and may replace ours; a user's
+``.frag`` takes the user's own ``.vert`` files first (CS184's folder holds
+every one of them), so a user's ``Wireframe.frag`` without a ``Wireframe.vert``
+pairs with the user's ``Default.vert``, not with our ``Wireframe.vert``.
 """
 
 from __future__ import annotations
@@ -40,10 +43,16 @@ class ShaderLibrary:
         frag = self._find(f"{name}.frag")
         if frag is None:
             raise RenderError(f"unknown shader {name!r}; available: {', '.join(self.names())}")
-        # a .vert beside the .frag wins, then any folder's Name.vert, then Default.vert
-        vert = frag.with_suffix(".vert")
+        # a .vert beside the .frag wins; a user's .frag then takes the user's Name.vert or
+        # Default.vert (any user folder, in order), as CS184 pairs within its one folder;
+        # then any folder's Name.vert, then Default.vert
+        vert: Path | None = frag.with_suffix(".vert")
         if not vert.is_file():
-            vert = self._find(f"{name}.vert") or self._find("Default.vert")
+            vert = None
+            if frag.parent != BUILTIN_DIR:
+                user = self.dirs[:-1]
+                vert = _first(user, f"{name}.vert") or _first(user, "Default.vert")
+            vert = vert or self._find(f"{name}.vert") or self._find("Default.vert")
         if vert is None:
             raise RenderError(f"no {name}.vert or Default.vert found for shader {name!r}")
         return vert, frag
@@ -57,6 +66,10 @@ class ShaderLibrary:
             return ctx.program(vertex_shader=vert.read_text(), fragment_shader=frag.read_text())
         except moderngl.Error as exc:
             raise RenderError(_compile_message(str(exc), vert, frag)) from None
+
+
+def _first(dirs: list[Path], filename: str) -> Path | None:
+    return next((d / filename for d in dirs if (d / filename).is_file()), None)
 
 
 def _compile_message(log: str, vert: Path, frag: Path) -> str:
