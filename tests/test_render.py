@@ -222,6 +222,35 @@ def test_a_users_own_vert_beats_their_default_vert(tmp_path):
     assert lib.sources("Bump")[0] == tmp_path / "Default.vert"  # any user folder's, before ours
 
 
+def _top_band_image(size=64, band=8):
+    """blue, with its first ``band`` rows (the top of the image) red"""
+    img = np.zeros((size, size, 3), np.uint8)
+    img[:, :, 2] = 255
+    img[:band] = (255, 0, 0)
+    return img
+
+
+def test_texture_first_row_is_at_v_0_as_in_cs184():
+    """an image's first row lies at v = 0, where CS184 puts it: on a flat grid cloth
+    (v = 0 along its j = 0 edge, at z = 0) seen from above, the red top band of the
+    texture is drawn along the z = 0 edge, not along z = 1"""
+    sim = Simulation.from_file(SCENES / "plane.json")
+    bare = cloth_only(sim)
+    cam = OrbitCamera(target=np.array([0.5, 1.0, 0.5]), azimuth=0, elevation=89, distance=2.0)
+    r = Renderer(size=SIZE, texture=_top_band_image())
+    img = render(r, bare, cam, shader="Texture", light=_light((0.5, 3.0, 0.5)))
+    r.release()
+    red = (img[:, :, 0] > 2 * img[:, :, 2] + 20) & foreground(img)
+    blue = (img[:, :, 2] > 2 * img[:, :, 0] + 20) & foreground(img)
+    assert 0.03 < red.sum() / (red.sum() + blue.sum()) < 0.3  # the band is an eighth of the image
+    rows, cols = np.nonzero(red)
+    red_centre = np.array([cols.mean(), rows.mean()])
+    pos = bare.positions
+    edge_v0 = _projected_centre(pos[np.isclose(pos[:, 2], 0.0)], cam, SIZE)
+    edge_v1 = _projected_centre(pos[np.isclose(pos[:, 2], 1.0)], cam, SIZE)
+    assert np.linalg.norm(red_centre - edge_v0) < 0.25 * np.linalg.norm(edge_v1 - edge_v0)
+
+
 def test_broken_shader_names_file_and_line(tmp_path):
     """a shader that does not compile raises RenderError with the file and line"""
     (tmp_path / "Broken.frag").write_text("#version 330\nout vec4 c;\nvoid main() {\n  c = vec4(1.0) + nope;\n}\n")

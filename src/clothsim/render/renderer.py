@@ -138,7 +138,9 @@ class Renderer:
         out = {}
         for name, img in (("u_texture_1", color), ("u_texture_2", height),
                           ("u_texture_3", assets.weave_height(256, 8)), ("u_texture_4", color)):
-            img = np.ascontiguousarray(img[::-1])  # GL's first row is v = 0, at the bottom
+            # as in CS184 (which uploads the decoded rows as they are): the image's first
+            # row, its top, is GL's first row, at v = 0
+            img = np.ascontiguousarray(img)
             tex = ctx.texture((img.shape[1], img.shape[0]), 3, img.tobytes())
             tex.build_mipmaps()
             tex.repeat_x = tex.repeat_y = True
