@@ -251,6 +251,78 @@ def test_texture_first_row_is_at_v_0_as_in_cs184():
     assert np.linalg.norm(red_centre - edge_v0) < 0.25 * np.linalg.norm(edge_v1 - edge_v0)
 
 
+UNIT_FRAG = ("#version 330\nuniform sampler2D u_texture_{n};\nin vec2 v_uv;\nout vec4 out_color;\n"
+             "void main() {{ out_color = vec4(texture(u_texture_{n}, v_uv).rgb, 1.0); }}\n")
+CUBE_FRAG = ("#version 330\nuniform samplerCube u_texture_cubemap;\nout vec4 out_color;\n"
+             "void main() { out_color = vec4(texture(u_texture_cubemap, vec3(0.3, 0.5, 0.8)).rgb, 1.0); }\n")
+UNIT_COLORS = {1: (250, 20, 20), 2: (20, 250, 20), 3: (20, 20, 250), 4: (250, 250, 20), "cube": (20, 250, 250)}
+
+
+def _solid(path, color, size=8):
+    from PIL import Image
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.full((size, size, 3), color, np.uint8)).save(path)
+
+
+@pytest.fixture
+def cs184_project(tmp_path):
+    """CS184's layout: shaders/ (one shader per texture unit, one for the cube map)
+    beside textures/ (texture_1..4.png, cube/posx..negz.png), each a solid colour"""
+    shaders = tmp_path / "shaders"
+    shaders.mkdir()
+    for n in (1, 2, 3, 4):
+        (shaders / f"Unit{n}.frag").write_text(UNIT_FRAG.format(n=n))
+        _solid(tmp_path / "textures" / f"texture_{n}.png", UNIT_COLORS[n])
+    (shaders / "Cube.frag").write_text(CUBE_FRAG)
+    for face in assets.CUBE_FACES:
+        _solid(tmp_path / "textures" / "cube" / f"{face}.png", UNIT_COLORS["cube"])
+    return tmp_path
+
+
+def _cli_image(tmp_path, *argv):
+    import subprocess
+    import sys
+
+    from PIL import Image
+
+    out = tmp_path / "out.png"
+    run = subprocess.run([sys.executable, "-m", "clothsim", "render", str(SCENES / "plane.json"), "-o", str(out),
+                          "--overwrite", "--seconds", "0.02", "--size", "64x64", *map(str, argv)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr
+    img = np.asarray(Image.open(out))
+    inside = interior(foreground(img))
+    assert inside.sum() > 200
+    return img[inside].mean(axis=0)
+
+
+@pytest.mark.parametrize("unit", [1, 2, 3, 4, "cube"])
+def test_textures_folder_beside_the_shaders_feeds_every_unit(cs184_project, unit):
+    """as CS184 does, textures/ beside --shaders DIR loads texture_N.png into u_texture_N
+    and cube/ as the cube map (each unit's shader draws that unit's colour)"""
+    name = "Cube" if unit == "cube" else f"Unit{unit}"
+    seen = _cli_image(cs184_project, "--shaders", cs184_project / "shaders", "--shader", name)
+    np.testing.assert_allclose(seen, UNIT_COLORS[unit], atol=3)
+
+
+def test_texture_options_win_over_the_folder_and_keep_their_aliases(cs184_project, tmp_path):
+    """--texture-N (and --texture, --height-map for units 1 and 2) and --textures DIR"""
+    _solid(tmp_path / "grey.png", (128, 128, 128))
+    _solid(tmp_path / "pink.png", (250, 120, 200))
+    shaders = ("--shaders", cs184_project / "shaders")
+    np.testing.assert_allclose(_cli_image(tmp_path, *shaders, "--shader", "Unit3", "--texture-3", tmp_path / "grey.png"),
+                               (128, 128, 128), atol=3)
+    np.testing.assert_allclose(_cli_image(tmp_path, *shaders, "--shader", "Unit1", "--texture", tmp_path / "pink.png"),
+                               (250, 120, 200), atol=3)
+    np.testing.assert_allclose(_cli_image(tmp_path, *shaders, "--shader", "Unit2", "--height-map",
+                                          tmp_path / "grey.png"), (128, 128, 128), atol=3)
+    elsewhere = tmp_path / "elsewhere"
+    (cs184_project / "shaders").rename(elsewhere)  # no textures/ beside it now: --textures names it
+    np.testing.assert_allclose(_cli_image(tmp_path, "--shaders", elsewhere, "--shader", "Unit4",
+                                          "--textures", cs184_project / "textures"), UNIT_COLORS[4], atol=3)
+
+
 def test_broken_shader_names_file_and_line(tmp_path):
     """a shader that does not compile raises RenderError with the file and line"""
     (tmp_path / "Broken.frag").write_text("#version 330\nout vec4 c;\nvoid main() {\n  c = vec4(1.0) + nope;\n}\n")

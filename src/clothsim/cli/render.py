@@ -43,12 +43,54 @@ def add_parser(sub) -> None:
     p.add_argument("--light", default=None, metavar="X,Y,Z", help="light position (default 0.5,2,2)")
     p.add_argument("--light-intensity", default=None, metavar="R,G,B", help="(default 3,3,3)")
     p.add_argument("--sphere-res", default="40", metavar="N|LAT,LON", help="sphere tessellation (default 40)")
-    p.add_argument("--texture", metavar="IMG", help="colour texture for the Texture shader")
-    p.add_argument("--height-map", metavar="IMG", help="height map for Bump and Displacement")
-    p.add_argument("--cubemap", metavar="DIR", help="folder with posx, negx, posy, negy, posz, negz images")
+    add_texture_args(p)
     p.add_argument("--fps", type=bounded_float("--fps", 0.0, VIDEO_FPS_MAX, lo_open=True), default=30.0,
                    help=f"video frames per second, up to {VIDEO_FPS_MAX:g} (default 30)")
     p.set_defaults(func=run)
+
+
+def add_texture_args(p: argparse.ArgumentParser) -> None:
+    """The images of the texture units and the cube map (``render`` and ``view``)."""
+    p.add_argument("--texture-1", "--texture", dest="texture_1", metavar="IMG",
+                   help="u_texture_1, the colour texture of Texture (--texture is the same)")
+    p.add_argument("--texture-2", "--height-map", dest="texture_2", metavar="IMG",
+                   help="u_texture_2, the height map of Bump and Displacement (--height-map is the same)")
+    p.add_argument("--texture-3", dest="texture_3", metavar="IMG", help="u_texture_3")
+    p.add_argument("--texture-4", dest="texture_4", metavar="IMG", help="u_texture_4 (default: u_texture_1's image)")
+    p.add_argument("--cubemap", metavar="DIR", help="folder with posx, negx, posy, negy, posz, negz images")
+    p.add_argument("--textures", metavar="DIR",
+                   help="CS184's textures folder: texture_1.png .. texture_4.png and cube/ (posx .. negz); "
+                        "default: a textures/ folder beside (or inside) a --shaders DIR; "
+                        "--texture-N and --cubemap win over it")
+
+
+def texture_folder(args: argparse.Namespace) -> Path | None:
+    """``--textures DIR``, else the first ``textures/`` folder beside a ``--shaders`` folder
+    (CS184's layout: ``shaders/`` and ``textures/`` side by side) or inside one."""
+    if args.textures:
+        return Path(args.textures)
+    for d in args.shaders:
+        for candidate in (Path(d).resolve().parent / "textures", Path(d) / "textures"):
+            if candidate.is_dir():
+                return candidate
+    return None
+
+
+def texture_assets(args: argparse.Namespace) -> tuple[dict, dict | None]:
+    """The images of the texture units (by number) and the cube map's faces the options ask for."""
+    from ..render import assets
+
+    units, cube = {}, None
+    folder = texture_folder(args)
+    if folder is not None:
+        units, cube = assets.read_texture_folder(folder)
+    for unit in assets.TEXTURE_UNITS:
+        path = getattr(args, f"texture_{unit}")
+        if path:
+            units[unit] = assets.read_image(path, f"--texture-{unit}")
+    if args.cubemap:
+        cube = assets.read_cubemap(args.cubemap)
+    return units, cube
 
 
 def settings_from_args(args: argparse.Namespace):
@@ -76,21 +118,19 @@ def settings_from_args(args: argparse.Namespace):
 
 def make_renderer(args: argparse.Namespace):
     """An offscreen renderer of ``--size`` with the shader folders and image assets asked for."""
-    from ..render import assets
     from ..render.renderer import Renderer
     from ..render.shaders import ShaderLibrary
 
-    return Renderer(
-        size=parse_size(args.size or DEFAULT_SIZE), shaders=ShaderLibrary(args.shaders),
-        texture=assets.read_image(args.texture, "texture") if args.texture else None,
-        height_map=assets.read_image(args.height_map, "height map") if args.height_map else None,
-        cubemap=assets.read_cubemap(args.cubemap) if args.cubemap else None)
+    library = ShaderLibrary(args.shaders)
+    units, cube = texture_assets(args)
+    return Renderer(size=parse_size(args.size or DEFAULT_SIZE), shaders=library, textures=units, cubemap=cube)
 
 
 DEFAULT_SIZE = "800x800"
 PLAYER_SUFFIXES = {".html", ".htm"}
-PLAYER_REFUSES = (("shader", "--shader", "Phong"), ("shaders", "--shaders", []), ("texture", "--texture", None),
-                  ("height_map", "--height-map", None), ("cubemap", "--cubemap", None),
+PLAYER_REFUSES = (("shader", "--shader", "Phong"), ("shaders", "--shaders", []), ("texture_1", "--texture-1", None),
+                  ("texture_2", "--texture-2", None), ("texture_3", "--texture-3", None),
+                  ("texture_4", "--texture-4", None), ("textures", "--textures", None), ("cubemap", "--cubemap", None),
                   ("normal_scaling", "--normal-scaling", None), ("height_scaling", "--height-scaling", None))
 """options of the GLSL renderer the web player has no use for: (dest, option, default)"""
 

@@ -109,3 +109,23 @@ def read_cubemap(folder: str | Path) -> dict[str, np.ndarray]:
     if len(shapes) != 1 or next(iter(shapes))[0] != next(iter(shapes))[1]:
         raise RenderError(f"{folder}: cube faces must be square and all the same size, got {sorted(shapes)}")
     return faces
+
+
+TEXTURE_UNITS = (1, 2, 3, 4)
+
+
+def read_texture_folder(folder: str | Path) -> tuple[dict[int, np.ndarray], dict[str, np.ndarray] | None]:
+    """What CS184 loads from a ``textures/`` folder: ``texture_1.png`` .. ``texture_4.png``
+    (the units ``u_texture_1..4``; any image extension, ``.png`` first) and the cube map
+    in ``cube/`` (posx .. negz). Each file may be missing; a folder that is not there is
+    an error."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise RenderError(f"{folder}: expected a textures folder (texture_1.png .. texture_4.png, cube/)")
+    units = {}
+    for unit in TEXTURE_UNITS:
+        found = sorted(folder.glob(f"texture_{unit}.*"), key=lambda p: (p.suffix.lower() != ".png", p.name))
+        if found:
+            units[unit] = read_image(found[0], f"texture_{unit}")
+    cube = folder / "cube"
+    return units, (read_cubemap(cube) if cube.is_dir() else None)

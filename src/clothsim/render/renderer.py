@@ -99,7 +99,12 @@ def create_context():
 class Renderer:
     def __init__(self, ctx=None, size: tuple[int, int] = (800, 800), shaders: ShaderLibrary | None = None,
                  samples: int = 4, texture: np.ndarray | None = None, height_map: np.ndarray | None = None,
-                 cubemap: dict[str, np.ndarray] | None = None) -> None:
+                 cubemap: dict[str, np.ndarray] | None = None,
+                 textures: dict[int, np.ndarray] | None = None) -> None:
+        """``textures``: images of the units ``u_texture_1`` .. ``u_texture_4`` by number;
+        ``texture`` and ``height_map`` are units 1 and 2 (where ``textures`` lacks them).
+        A unit not given gets its built-in image: 1 a plaid, 2 and 3 weave height maps,
+        4 unit 1's image."""
         self.offscreen = ctx is None
         self.ctx = ctx if ctx is not None else create_context()
         self.size = size
@@ -111,13 +116,14 @@ class Renderer:
         self._meshes: list[tuple[object, object, object, int]] = []  # vbo, tri ibo, edge ibo, id
         self.samples = 0
         self._depth = 0
-        self._setup(size, samples, texture, height_map, cubemap)
+        units = {1: texture, 2: height_map, **(textures or {})}
+        self._setup(size, samples, units, cubemap)
 
     @_current
-    def _setup(self, size, samples, texture, height_map, cubemap) -> None:
+    def _setup(self, size, samples, units, cubemap) -> None:
         if self.offscreen:
             self._make_framebuffers(size, samples)
-        self._textures = self._make_textures(texture, height_map, cubemap)
+        self._textures = self._make_textures(units, cubemap)
 
     # ------------------------------------------------------------ resources
 
@@ -130,14 +136,17 @@ class Renderer:
         self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer(size, 4)],
                                     depth_attachment=ctx.depth_renderbuffer(size))
 
-    def _make_textures(self, texture, height_map, cubemap) -> dict[str, object]:
+    def _make_textures(self, units: dict[int, np.ndarray | None], cubemap) -> dict[str, object]:
         ctx = self.ctx
-        color = texture if texture is not None else assets.plaid_texture()
-        height = height_map if height_map is not None else assets.weave_height()
+        color = units.get(1) if units.get(1) is not None else assets.plaid_texture()
+        defaults = {1: color, 2: assets.weave_height, 3: lambda: assets.weave_height(256, 8), 4: color}
         faces = cubemap if cubemap is not None else assets.sky_environment()
         out = {}
-        for name, img in (("u_texture_1", color), ("u_texture_2", height),
-                          ("u_texture_3", assets.weave_height(256, 8)), ("u_texture_4", color)):
+        for unit, default in defaults.items():
+            img = units.get(unit)
+            if img is None:
+                img = default() if callable(default) else default
+            name = f"u_texture_{unit}"
             # as in CS184 (which uploads the decoded rows as they are): the image's first
             # row, its top, is GL's first row, at v = 0
             img = np.ascontiguousarray(img)

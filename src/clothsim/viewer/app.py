@@ -30,7 +30,8 @@ class ViewerApp:
     """One window showing one Simulation; ``frame()`` advances and draws one frame."""
 
     def __init__(self, sim: Simulation, size: tuple[int, int] = (1280, 800), shaders: ShaderLibrary | None = None,
-                 shader: str = "Phong", visible: bool = True, sphere_res: tuple[int, int] = (40, 40)) -> None:
+                 shader: str = "Phong", visible: bool = True, sphere_res: tuple[int, int] = (40, 40),
+                 textures: dict | None = None, cubemap: dict | None = None) -> None:
         require_display()
         import moderngl_window as mglw
         from imgui_bundle import imgui
@@ -49,7 +50,8 @@ class ViewerApp:
         imgui.get_io().set_ini_filename("")  # no imgui.ini left in the user's folder
         self.imgui = imgui
         self.gui = ModernglWindowRenderer(self.wnd)
-        self.renderer = Renderer(ctx=self.ctx, size=self.wnd.buffer_size, shaders=shaders or ShaderLibrary())
+        self.renderer = Renderer(ctx=self.ctx, size=self.wnd.buffer_size, shaders=shaders or ShaderLibrary(),
+                                 textures=textures, cubemap=cubemap)
         self.shader_names = self.renderer.library.names()
         self.settings = DrawSettings(shader=shader)
         self.renderer.program(shader)
