@@ -323,6 +323,21 @@ def test_texture_options_win_over_the_folder_and_keep_their_aliases(cs184_projec
                                           "--textures", cs184_project / "textures"), UNIT_COLORS[4], atol=3)
 
 
+def test_cs184_look_white_cloth_by_itself_with_a_shader_folder(tmp_path):
+    """--cs184 (and, by itself, --shaders DIR) draws CS184's white cloth; without it
+    ours is red; --no-cs184 and --color win"""
+    (tmp_path / "Extra.frag").write_text(TINT_FRAG.replace("v_tint", "v_normal"))
+    red = _cli_image(tmp_path, "--shader", "Diffuse")
+    assert red[0] > 1.5 * red[1]
+    for argv in (["--cs184"], ["--shaders", tmp_path]):
+        white = _cli_image(tmp_path, "--shader", "Diffuse", *argv)
+        assert white.max() < 1.1 * white.min() and white[1] > 1.3 * red[1], (argv, white, red)
+    again = _cli_image(tmp_path, "--shader", "Diffuse", "--shaders", tmp_path, "--no-cs184")
+    np.testing.assert_allclose(again, red, atol=2)
+    green = _cli_image(tmp_path, "--shader", "Diffuse", "--cs184", "--color", "0,1,0")
+    assert green[1] > 1.5 * green[0]
+
+
 def test_broken_shader_names_file_and_line(tmp_path):
     """a shader that does not compile raises RenderError with the file and line"""
     (tmp_path / "Broken.frag").write_text("#version 330\nout vec4 c;\nvoid main() {\n  c = vec4(1.0) + nope;\n}\n")

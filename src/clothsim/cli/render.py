@@ -44,6 +44,7 @@ def add_parser(sub) -> None:
     p.add_argument("--light-intensity", default=None, metavar="R,G,B", help="(default 3,3,3)")
     p.add_argument("--sphere-res", default="40", metavar="N|LAT,LON", help="sphere tessellation (default 40)")
     add_texture_args(p)
+    add_look_arg(p)
     p.add_argument("--fps", type=bounded_float("--fps", 0.0, VIDEO_FPS_MAX, lo_open=True), default=30.0,
                    help=f"video frames per second, up to {VIDEO_FPS_MAX:g} (default 30)")
     p.set_defaults(func=run)
@@ -62,6 +63,23 @@ def add_texture_args(p: argparse.ArgumentParser) -> None:
                    help="CS184's textures folder: texture_1.png .. texture_4.png and cube/ (posx .. negz); "
                         "default: a textures/ folder beside (or inside) a --shaders DIR; "
                         "--texture-N and --cubemap win over it")
+
+
+CS184_LOOK = {"color": (1.0, 1.0, 1.0), "normal_scaling": 2.0, "height_scaling": 0.1}
+"""CS184's defaults, which a student's shader folder is tuned for"""
+
+
+def add_look_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--cs184", action=argparse.BooleanOptionalAction, default=None,
+                   help="CS184's look: white cloth, normal scaling 2, height scaling 0.1 (on by itself with "
+                        "--shaders DIR, --no-cs184 turns it off; --color and the scalings win over it)")
+
+
+def apply_look(args: argparse.Namespace, settings) -> None:
+    """CS184's defaults on ``settings`` under ``--cs184``, or by themselves with ``--shaders``."""
+    if args.cs184 or (args.cs184 is None and args.shaders):
+        for name, value in CS184_LOOK.items():
+            setattr(settings, name, value)
 
 
 def texture_folder(args: argparse.Namespace) -> Path | None:
@@ -99,6 +117,7 @@ def settings_from_args(args: argparse.Namespace):
     from ..render.renderer import DrawSettings
 
     s = DrawSettings(shader=args.shader)
+    apply_look(args, s)
     if args.color:
         s.color = parse_floats(args.color, 3, "--color")
     if args.normal_scaling is not None:
@@ -131,6 +150,7 @@ PLAYER_SUFFIXES = {".html", ".htm"}
 PLAYER_REFUSES = (("shader", "--shader", "Phong"), ("shaders", "--shaders", []), ("texture_1", "--texture-1", None),
                   ("texture_2", "--texture-2", None), ("texture_3", "--texture-3", None),
                   ("texture_4", "--texture-4", None), ("textures", "--textures", None), ("cubemap", "--cubemap", None),
+                  ("cs184", "--cs184", None),
                   ("normal_scaling", "--normal-scaling", None), ("height_scaling", "--height-scaling", None))
 """options of the GLSL renderer the web player has no use for: (dest, option, default)"""
 

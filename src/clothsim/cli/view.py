@@ -7,7 +7,7 @@ import argparse
 from ..errors import UsageError
 from ..outputs import check_writable
 from .common import add_scene_arg, add_simulation_args, load_simulation
-from .render import add_texture_args, texture_assets
+from .render import add_look_arg, add_texture_args, apply_look, texture_assets
 from .values import FRAMES_MAX, bounded_int, parse_size
 
 
@@ -20,6 +20,7 @@ def add_parser(sub) -> None:
     p.add_argument("--shaders", action="append", default=[], metavar="DIR",
                    help="folder of Name.vert/Name.frag files searched before the built-in ones")
     add_texture_args(p)
+    add_look_arg(p)
     p.add_argument("--size", default="1280x800", help="window size WIDTHxHEIGHT (default 1280x800)")
     p.add_argument("--frames", type=bounded_int("--frames", 1, FRAMES_MAX), metavar="N",
                    help="scripted: run N frames, then exit")
@@ -51,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--shader: unknown shader {args.shader!r}; available: {', '.join(library.names())}")
     units, cube = texture_assets(args)
     app = ViewerApp(sim, size=size, shaders=library, shader=args.shader, textures=units, cubemap=cube)
+    apply_look(args, app.settings)
     try:
         if args.frames is None:
             app.run()
