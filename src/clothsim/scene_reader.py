@@ -81,9 +81,11 @@ class Reader:
         for name in obj:
             if name not in allowed:
                 if lenient:
-                    nearest = difflib.get_close_matches(name, sorted(allowed), n=1, cutoff=0.0)
+                    # a hint only where one is near: 'colour' is like no key of a cloth
+                    nearest = difflib.get_close_matches(name, sorted(allowed), n=1, cutoff=0.6)
                     self.ignore(f"{key}.{name}", "unknown key" + (f" (nearest known key: {nearest[0]!r})"
-                                                                 if nearest else ""))
+                                                                 if nearest else "; known keys: "
+                                                                 + ", ".join(sorted(allowed))))
                     continue
                 raise self.fail(f"{key}.{name}", f"unknown key; expected one of {', '.join(sorted(allowed))}")
         for name in required:
