@@ -54,7 +54,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:  # a value parser raises UsageError: one line, like every other error
         args = build_parser().parse_args(argv)
     except ClothsimError as exc:
-        print(f"clothsim: error: {exc}", file=sys.stderr)
+        print(error_line(exc), file=sys.stderr)
         return 2
     previous = signal.getsignal(signal.SIGTERM)
     in_main = threading.current_thread() is threading.main_thread()
@@ -63,7 +63,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return args.func(args)
     except ClothsimError as exc:
-        print(f"clothsim: error: {exc}", file=sys.stderr)
+        print(error_line(exc), file=sys.stderr)
         return 2
     except (KeyboardInterrupt, Terminated, SystemError) as exc:
         # an interrupt that lands while numba loads or calls compiled code comes
@@ -76,6 +76,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if in_main:
             signal.signal(signal.SIGTERM, previous)
+
+
+def error_line(exc: BaseException) -> str:
+    """``clothsim: error: MESSAGE`` on one line: a character that is not printable
+    (a newline, a form feed, a control character in a key from the scene) is
+    shown as its escape, so the message is one line on any terminal."""
+    text = "".join(ch if ch.isprintable() else ascii(ch)[1:-1] for ch in str(exc))
+    return f"clothsim: error: {text}"
 
 
 def _stopped_by(exc: BaseException | None) -> type | None:
