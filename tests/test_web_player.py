@@ -202,7 +202,7 @@ def test_cli_bad_output_one_line_exit_2_before_the_run(tmp_path, capsys, monkeyp
     elif case == "folder is a file":
         (tmp_path / "file").write_text("")
         out = tmp_path / "file" / "p.html"
-        extra, expected = ["--overwrite"], "cannot write in"
+        extra, expected = ["--overwrite"], "is not a folder"
     elif case == "no folder":
         out, expected = tmp_path / "nowhere" / "p.html", "does not exist"
     elif case == "extension":

@@ -13,7 +13,7 @@ import numpy as np
 
 from .export.obj import model_objects
 from .export.objseq import ObjSequence
-from .outputs import OutputError, atomic_path, check_writable
+from .outputs import OutputError, atomic_path, check_output_folder, check_writable
 from .simulation import Simulation
 from .trajectory import Trajectory, TrajectoryRecorder
 
@@ -102,6 +102,7 @@ class FrameRecorder:
     def __init__(self, sim: Simulation, sequence_dir: str | None = None, npz_path: str | None = None,
                  overwrite: bool = False, outputs: dict[str, str] | None = None) -> None:
         self.sequence_dir = Path(sequence_dir) if sequence_dir else None
+        self.overwrite = overwrite
         self.outputs = {kind: Path(p) for kind, p in (outputs or {}).items() if p}
         if npz_path:
             self.outputs["npz"] = Path(npz_path)
@@ -110,8 +111,7 @@ class FrameRecorder:
                 raise ValueError(f"no writer for {kind!r}")
             check_writable(path, overwrite)
         if self.sequence_dir:
-            if self.sequence_dir.exists() and not self.sequence_dir.is_dir():
-                raise OutputError(f"{self.sequence_dir}: exists and is not a folder")
+            check_output_folder(self.sequence_dir)
             if self.sequence_dir.is_dir() and any(self.sequence_dir.glob("frame_*.obj")) and not overwrite:
                 raise OutputError(f"{self.sequence_dir}: already holds frame_*.obj files; "
                                   "pass --overwrite to replace them")
@@ -142,7 +142,7 @@ class FrameRecorder:
             return
         traj = self._frames.trajectory(sim)
         for kind, path in self.outputs.items():
-            with atomic_path(path) as tmp:
+            with atomic_path(path, self.overwrite) as tmp:
                 if kind == "usd":
                     self._stage.finish(tmp, traj)
                 else:

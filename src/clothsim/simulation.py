@@ -209,8 +209,10 @@ class Simulation:
                 on_frame(self)
         return frames
 
-    def export_obj(self, path: str | Path) -> None:
-        write_model_obj(path, self.model, self.positions, self.normals)  # one object per cloth
+    def export_obj(self, path: str | Path, overwrite: bool = True) -> None:
+        """Write the cloth as an OBJ (one object per cloth); ``overwrite=False``: never
+        over a file that is at ``path`` when it is placed."""
+        write_model_obj(path, self.model, self.positions, self.normals, overwrite)
 
     # ------------------------------------------------------------------ notebooks
 

@@ -56,7 +56,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:  # a value parser raises UsageError: one line, like every other error
         args = build_parser().parse_args(argv)
     except ClothsimError as exc:
-        print(f"clothsim: error: {exc}", file=sys.stderr)
+        print(error_line(exc), file=sys.stderr)
         return 2
     previous = signal.getsignal(signal.SIGTERM)
     in_main = threading.current_thread() is threading.main_thread()
@@ -68,7 +68,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.showwarning = _one_line(warnings.showwarning)
             return args.func(args)
     except ClothsimError as exc:
-        print(f"clothsim: error: {exc}", file=sys.stderr)
+        print(error_line(exc), file=sys.stderr)
         return 2
     except (KeyboardInterrupt, Terminated, SystemError) as exc:
         # an interrupt that lands while numba loads or calls compiled code comes
@@ -87,10 +87,22 @@ def _one_line(show):
     """``warnings.showwarning`` that prints a SceneWarning as one line and leaves the others to ``show``."""
     def showwarning(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, SceneWarning):
-            print(f"clothsim: warning: {message}", file=sys.stderr, flush=True)
+            print(f"clothsim: warning: {printable(str(message))}", file=sys.stderr, flush=True)
         else:
             show(message, category, filename, lineno, file, line)
     return showwarning
+
+
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable (a newline, a form feed,
+    a control character in a key from the scene) shown as its escape, so that a
+    message is one line on any terminal."""
+    return "".join(ch if ch.isprintable() else ascii(ch)[1:-1] for ch in text)
+
+
+def error_line(exc: BaseException) -> str:
+    """``clothsim: error: MESSAGE`` on one line (see :func:`printable`)."""
+    return f"clothsim: error: {printable(str(exc))}"
 
 
 def _stopped_by(exc: BaseException | None) -> type | None:

@@ -98,10 +98,12 @@ def load_simulation(args: argparse.Namespace) -> Simulation:
 
 
 def check_exports(args: argparse.Namespace) -> None:
-    """Fail before the scene is built (and the kernels compile) when a whole-run
-    export cannot be written: ``--export-usd``'s extension and folder, and
-    ``--export-npz``. :class:`~clothsim.recording.FrameRecorder` checks again."""
-    from ..outputs import check_writable
+    """Fail before the scene is built (and the kernels compile) when an export
+    cannot be written: ``--export``, ``--export-usd`` (its extension too),
+    ``--export-npz`` (each: not there without ``--overwrite``, its folder there,
+    a folder and writable) and ``--export-sequence`` (a writable folder, or one
+    that can be made). :class:`~clothsim.recording.FrameRecorder` checks again."""
+    from ..outputs import check_output_folder, check_writable
 
     overwrite = getattr(args, "overwrite", False)
     if getattr(args, "export_usd", None):
@@ -110,6 +112,10 @@ def check_exports(args: argparse.Namespace) -> None:
         check_usd_path(args.export_usd, overwrite)
     if getattr(args, "export_npz", None):
         check_writable(args.export_npz, overwrite)
+    if getattr(args, "export", None):
+        check_writable(args.export, overwrite)
+    if getattr(args, "export_sequence", None):
+        check_output_folder(args.export_sequence)
 
 
 def say_compiling() -> None:

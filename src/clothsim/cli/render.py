@@ -4,13 +4,11 @@ or write a web page that plays it."""
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
 import time
 from pathlib import Path
 
 from ..errors import UsageError
-from ..outputs import OutputError, check_writable, write_atomic
+from ..outputs import check_writable, write_atomic
 from ..render.media import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 from .common import add_scene_args, load_simulation, make_recorder, progress_bar, run_with_progress, summary
 from .values import (LOOK_MAX, VIDEO_FPS_MAX, bounded_float, check_seconds, frame_count, parse_floats, parse_size,
@@ -179,27 +177,13 @@ def validate(args: argparse.Namespace) -> str:
     return suffix
 
 
-def check_can_create(path: str | Path) -> None:
-    """Fail before the run when no file can be made in ``path``'s folder (no
-    permission, a read-only disk, a folder that is a file): a temporary file is
-    made there and removed."""
-    folder = Path(path).parent
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=".clothsim-probe-", dir=folder)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write in {folder} ({exc.strerror or exc})") from None
-    os.close(fd)
-    os.unlink(tmp)
-
-
 def run(args: argparse.Namespace) -> int:
     from ..render.media import save_image
     from ..render.scene_view import SimulationView, default_camera
     from ..render.sheet import contact_sheet
 
     suffix = validate(args)
-    check_writable(args.output, args.overwrite)
-    check_can_create(args.output)
+    check_writable(args.output, args.overwrite)  # its folder too: exists, is a folder, takes a file
     if suffix in PLAYER_SUFFIXES:
         return _write_player(args)
     settings = settings_from_args(args)
@@ -232,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
         settings.shader = name
         images.append(renderer.render(cam, settings))
     image = images[0] if len(images) == 1 else contact_sheet(images, names)
-    save_image(args.output, image)
+    save_image(args.output, image, overwrite=args.overwrite)
     print(summary(sim, frames, wall) + f"; wrote {args.output}")
     return 0
 
@@ -283,7 +267,7 @@ def _write_player(args: argparse.Namespace) -> int:
     recorder.finish(sim)
     start = time.perf_counter()
     traj = frames.trajectory(sim)
-    write_atomic(args.output, lambda tmp: write_player(tmp, traj, **look))
+    write_atomic(args.output, lambda tmp: write_player(tmp, traj, **look), args.overwrite)
     took = time.perf_counter() - start
     size = Path(args.output).stat().st_size
     print(summary(sim, count, wall) + f"; wrote {args.output} ({size / 1e6:.1f} MB in {took:.2f} s)")
@@ -300,7 +284,7 @@ def _render_video(args, sim, view, settings, cam, recorder) -> int:
     try:
         shown = write_animation(args.output, sim, view, cam, settings, sim_frames, every,
                                 on_frame=recorder if recorder.active else None,
-                                on_drawn=lambda: bar.update(1))
+                                on_drawn=lambda: bar.update(1), overwrite=args.overwrite)
     finally:
         bar.close()
     wall = time.perf_counter() - start

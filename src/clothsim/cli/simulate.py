@@ -27,6 +27,6 @@ def run(args: argparse.Namespace) -> int:
                                      recorder if recorder.active else None)
     recorder.finish(sim)
     if args.export:
-        sim.export_obj(args.export)
+        sim.export_obj(args.export, overwrite=args.overwrite)
     print(summary(sim, frames, wall) + (f"; wrote {args.export}" if args.export else ""))
     return 0

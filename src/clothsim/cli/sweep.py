@@ -35,13 +35,14 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..outputs import check_output_folder
     from ..render.shaders import ShaderLibrary
     from ..scene import apply_overrides, parse_scene, read_scene_json
     from ..sweep.outdir import SweepDir
     from ..sweep.plan import plan_runs
-    from ..sweep.runner import run_sweep
 
     check_seconds(args.seconds)
+    check_output_folder(args.output)
     if args.workers < 1:
         raise UsageError(f"--workers: expected at least 1, got {args.workers}")
     if args.shader not in ShaderLibrary().names():
@@ -60,6 +61,24 @@ def run(args: argparse.Namespace) -> int:
     for text in dict.fromkeys(str(w.message) for w in ignored if issubclass(w.category, SceneWarning)):
         print(f"clothsim: warning: {text}", file=sys.stderr)
     out = SweepDir(args.output, args.force)
+    with out.lock():  # one sweep at a time into a folder
+        todo, done, failed, workers = _run(args, out, specs, scene)
+    where = args.scheduler or f"{workers} local worker(s)"
+    print(f"{len(specs)} runs ({len(todo)} run now on {where}, {len(done)} already done, {len(failed)} failed); "
+          f"wrote {args.output}/runs.csv and {args.output}/sheet.png")
+    # a run that failed before and is not redone (same settings) still failed
+    failures = len(failed) + sum(1 for spec in done if (out.load_record(spec) or {}).get("error"))
+    if failures:
+        print(f"clothsim: {failures} of {len(specs)} runs failed (their errors are in {args.output}/runs.csv)",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+def _run(args: argparse.Namespace, out, specs: list, scene: str) -> tuple[list, list, list, int]:
+    """Run what the folder does not hold yet, saving each run as it finishes; write the summary."""
+    from ..sweep.runner import run_sweep
+
     todo, done = out.plan(specs)
     bar = progress_bar(len(specs), "run", not args.no_progress, initial=len(done))
     failed = []
@@ -77,13 +96,4 @@ def run(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     out.write_summary(specs, scene)
-    where = args.scheduler or f"{workers} local worker(s)"
-    print(f"{len(specs)} runs ({len(todo)} run now on {where}, {len(done)} already done, {len(failed)} failed); "
-          f"wrote {args.output}/runs.csv and {args.output}/sheet.png")
-    # a run that failed before and is not redone (same settings) still failed
-    failures = len(failed) + sum(1 for spec in done if (out.load_record(spec) or {}).get("error"))
-    if failures:
-        print(f"clothsim: {failures} of {len(specs)} runs failed (their errors are in {args.output}/runs.csv)",
-              file=sys.stderr)
-        return 1
-    return 0
+    return todo, done, failed, workers

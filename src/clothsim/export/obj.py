@@ -126,10 +126,11 @@ def obj_text(positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray, triang
 
 
 def write_obj(path: str | Path, positions: np.ndarray, normals: np.ndarray, uvs: np.ndarray,
-              triangles: np.ndarray, objects: Objects | None = None) -> None:
-    """Write one frame's OBJ to ``path``, whole or not at all."""
+              triangles: np.ndarray, objects: Objects | None = None, overwrite: bool = True) -> None:
+    """Write one frame's OBJ to ``path``, whole or not at all (without ``overwrite``,
+    never over a file that appeared meanwhile)."""
     data = obj_bytes(positions, normals, uvs, triangles, objects)
-    write_atomic(path, lambda tmp: tmp.write_bytes(data))
+    write_atomic(path, lambda tmp: tmp.write_bytes(data), overwrite)
 
 
 def model_obj_text(model, positions: np.ndarray, normals: np.ndarray | None = None) -> str:
@@ -141,8 +142,9 @@ def model_obj_text(model, positions: np.ndarray, normals: np.ndarray | None = No
     return obj_text(positions, normals, model.uvs, model.triangles, model_objects(model))
 
 
-def write_model_obj(path: str | Path, model, positions: np.ndarray, normals: np.ndarray | None = None) -> None:
+def write_model_obj(path: str | Path, model, positions: np.ndarray, normals: np.ndarray | None = None,
+                    overwrite: bool = True) -> None:
     """Write :func:`model_obj_text` to ``path``, whole or not at all (``Simulation.export_obj``)."""
     if normals is None:
         normals = compute_normals(np.asarray(positions, np.float64), model.triangles)
-    write_obj(path, positions, normals, model.uvs, model.triangles, model_objects(model))
+    write_obj(path, positions, normals, model.uvs, model.triangles, model_objects(model), overwrite)

@@ -24,24 +24,26 @@ IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg"}
 VIDEO_SUFFIXES = {".mp4", ".gif"}
 
 
-def save_image(path: str | Path, image: np.ndarray) -> None:
-    """Write an RGB image, shape (H, W, 3) uint8, as JPEG or PNG by the suffix; whole or not at all."""
+def save_image(path: str | Path, image: np.ndarray, overwrite: bool = True) -> None:
+    """Write an RGB image, shape (H, W, 3) uint8, as JPEG or PNG by the suffix; whole or not at all
+    (without ``overwrite``, never over a file that appeared meanwhile)."""
     from PIL import Image
 
-    with atomic_path(path) as tmp:
+    with atomic_path(path, overwrite) as tmp:
         Image.fromarray(image).save(tmp, format="JPEG" if Path(path).suffix.lower() in {".jpg", ".jpeg"} else "PNG")
 
 
 def write_animation(path: str | Path, sim: Simulation, view: SimulationView, camera: OrbitCamera,
                     settings: DrawSettings, frames: int, every: int,
                     on_frame: Callable[[Simulation], None] | None = None,
-                    on_drawn: Callable[[], None] | None = None) -> int:
+                    on_drawn: Callable[[], None] | None = None, overwrite: bool = True) -> int:
     """Step ``sim`` ``frames`` frames and write an MP4 or GIF (by the suffix) of the
     start and of every ``every``-th frame; return how many frames were drawn.
 
     The video plays at ``frames_per_sec / every`` frames a second, i.e. in real
     time. ``on_frame(sim)`` runs after each simulated frame, ``on_drawn()``
-    after each drawn one. The file appears only once it is complete.
+    after each drawn one. The file appears only once it is complete (without
+    ``overwrite``, never over a file that appeared meanwhile).
     """
     import imageio.v2 as imageio
 
@@ -50,7 +52,7 @@ def write_animation(path: str | Path, sim: Simulation, view: SimulationView, cam
     kwargs = {"fps": fps, "macro_block_size": 1} if Path(path).suffix.lower() == ".mp4" \
         else {"duration": 1000.0 / fps, "loop": 0}
     drawn = 0
-    with atomic_path(path) as tmp:
+    with atomic_path(path, overwrite) as tmp:
         writer = imageio.get_writer(tmp, **kwargs)
         try:
             def draw() -> None:

@@ -5,8 +5,15 @@ runs.csv has a row per run: the varied values, the measures of
 (``NAME.lowest_y``, ``NAME.sag``, ``NAME.max_stretch``).
 
 A run is done when ``records/NAME.json`` holds its digest; re-running skips
-it. Files the sweep did not write, or wrote for different settings, are
-never replaced without ``--force``.
+it. Before a run's files are written its record says ``pending`` (with the
+digest), so a sweep killed between a run's image and its record redoes that
+run next time instead of taking its files for another's. Files the sweep did
+not write, or wrote for different settings, are never replaced without
+``--force``.
+
+One sweep at a time writes into a folder: :meth:`SweepDir.lock` makes
+``.sweep.lock`` exclusively, holding the sweep's process id; a lock whose
+process is gone (a killed sweep) is taken over.
 """
 
 from __future__ import annotations
@@ -15,6 +22,9 @@ import csv
 import io
 import json
 import math
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +36,7 @@ from .runner import RunResult
 
 METRIC_COLUMNS = ["lowest_y", "sag", "max_stretch", "mean_speed", "at_rest", "frames", "wall_s"]
 MANIFEST = "sweep.json"
+LOCK = ".sweep.lock"
 
 
 class SweepDir:
@@ -39,11 +50,65 @@ class SweepDir:
     def _record_path(self, spec: RunSpec) -> Path:
         return self.records / f"{spec.name}.json"
 
-    def load_record(self, spec: RunSpec) -> dict[str, Any] | None:
+    def _read_record(self, spec: RunSpec) -> dict[str, Any] | None:
         try:
-            return json.loads(self._record_path(spec).read_text())
-        except (OSError, json.JSONDecodeError):
+            record = json.loads(self._record_path(spec).read_text())
+        except (OSError, json.JSONDecodeError, RecursionError):
             return None
+        return record if isinstance(record, dict) else None
+
+    def load_record(self, spec: RunSpec) -> dict[str, Any] | None:
+        """the finished run's record, or None (not run, or stopped while its files were written)"""
+        record = self._read_record(spec)
+        return None if record is None or record.get("pending") else record
+
+    @contextmanager
+    def lock(self) -> Iterator[None]:
+        """Hold the folder against a second sweep into it: ``.sweep.lock`` made
+        exclusively with this process's id; OutputError when a live process holds
+        it; a lock left by a process that is gone is taken over."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        path = self.path / LOCK
+        if not self._create_lock(path):
+            self._take_over(path)
+        try:
+            yield
+        finally:
+            if _lock_pid(path) == os.getpid():
+                path.unlink(missing_ok=True)
+
+    def _create_lock(self, path: Path) -> bool:
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except FileExistsError:
+            return False
+        with os.fdopen(fd, "w") as f:
+            f.write(f"{os.getpid()}\n")
+        return True
+
+    def _take_over(self, path: Path) -> None:
+        """a lock is there: refuse while its process lives, else replace it (the
+        check and the replacement under a lock of the folder, so two sweeps
+        that find the same stale lock do not both take it)"""
+        fd = os.open(self.path, os.O_RDONLY)
+        try:
+            try:
+                import fcntl
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            except (ImportError, OSError):
+                pass
+            pid = _lock_pid(path)
+            if pid is None and path.exists() and _age_s(path) < 10:
+                pid = -1  # being written by the sweep that just made it
+            if pid is not None and (pid == -1 or _alive(pid)):
+                who = "another sweep" if pid == -1 else f"another sweep (process {pid})"
+                raise OutputError(f"{self.path}: {who} is writing into this folder; wait for it or choose "
+                                  f"another folder (remove {path} if no sweep is running)")
+            path.unlink(missing_ok=True)
+            if not self._create_lock(path):
+                raise OutputError(f"{self.path}: another sweep is writing into this folder")
+        finally:
+            os.close(fd)
 
     def plan(self, specs: list[RunSpec]) -> tuple[list[RunSpec], list[RunSpec]]:
         """Split into (to run, already done); raise before anything runs on a conflict."""
@@ -53,9 +118,12 @@ class SweepDir:
             if (self.path / name).exists() and not ours and not self.force:
                 conflicts.append(self.path / name)
         for spec in specs:
-            rec = self.load_record(spec)
+            rec = self._read_record(spec)
             if rec is not None and rec.get("digest") == spec.digest() and not self.force:
-                done.append(spec)
+                if not rec.get("pending"):
+                    done.append(spec)
+                else:  # stopped while its files were written: ours, redone
+                    todo.append(spec)
                 continue
             if not self.force:
                 if rec is not None:
@@ -73,6 +141,8 @@ class SweepDir:
         """Write one finished run: images first, the record (the 'done' mark) last."""
         self.records.mkdir(parents=True, exist_ok=True)
         spec = result.spec
+        pending = {"digest": spec.digest(), "name": spec.name, "pending": True}
+        write_atomic(self._record_path(spec), lambda t: t.write_text(json.dumps(pending, indent=1)))
         if result.png is not None:
             write_atomic(self.path / f"{spec.name}.png", lambda t: t.write_bytes(result.png))
         if result.obj is not None:
@@ -127,6 +197,37 @@ class SweepDir:
         def save(tmp: Path) -> None:
             Image.fromarray(sheet).save(tmp, format="PNG")
         write_atomic(self.path / "sheet.png", save)
+
+
+def _lock_pid(path: Path) -> int | None:
+    try:
+        text = path.read_text().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() and len(text) < 12 else None
+
+
+def _age_s(path: Path) -> float:
+    import time
+
+    try:
+        return time.time() - path.stat().st_mtime
+    except OSError:
+        return 0.0
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's live process
+        return True
+    except OSError:
+        return False
+    return True
 
 
 def cloth_metric_columns(records: list[dict[str, Any]]) -> list[str]:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import io
 import multiprocessing
+import os
+import threading
 import time
 import traceback
 import warnings
@@ -80,10 +82,45 @@ def _local(specs: list[RunSpec], workers: int) -> Iterator[RunResult]:
         return
     # spawn: a fresh interpreter per worker, no GL or thread state inherited by fork
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=watch_parent,
+                               initargs=(os.getpid(),))
+    try:
         futures = [pool.submit(run_one, spec) for spec in specs]
         for fut in as_completed(futures):
             yield fut.result()
+    except BaseException:  # Ctrl-C, SIGTERM, an error: the workers stop with the sweep
+        stop_workers(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def stop_workers(pool: ProcessPoolExecutor) -> None:
+    """End every worker of ``pool`` now: queued runs are dropped, running ones killed."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in processes:
+        proc.join(timeout=5)
+        if proc.is_alive():
+            proc.kill()
+            proc.join(timeout=5)
+
+
+WATCH_S = 0.5
+"""how often a worker checks that the sweep that started it still runs [s]"""
+
+
+def watch_parent(parent: int) -> None:
+    """A worker's initializer: a thread that ends the worker once the sweep that
+    started it is gone (killed with SIGKILL, where it could not stop its workers)."""
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(WATCH_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="clothsim-watch-parent", daemon=True).start()
 
 
 def _dask(specs: list[RunSpec], scheduler: str) -> Iterator[RunResult]:
