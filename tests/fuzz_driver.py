@@ -11,7 +11,7 @@ of ``{"scene": TEXT, "sets": [KEY=VALUE, ...]}``; the scene text is written to
 standard scenes name). Before a case runs its index is written to stderr
 (``case N``), after it one JSON line to REPORT.jsonl: ``{"case", "rc",
 "stdout", "stderr", "exception"}``. A case still running after
-``CLOTHSIM_FUZZ_CASE_S`` seconds (default 60) ends the process with the
+``CLOTHSIM_FUZZ_CASE_S`` seconds (default 300: a case may compile a variant of the kernels on a cold cache) ends the process with the
 stacks of its threads on stderr.
 """
 
@@ -34,7 +34,7 @@ def run_case(index: int, case: dict, folder: Path) -> dict:
 
     scene = folder / f"scene_{index}.json"
     scene.write_text(case["scene"], encoding="utf-8")
-    argv = ["simulate", str(scene), "--seconds", SECONDS, "--no-progress",
+    argv = ["simulate", str(scene), "--seconds", SECONDS, "--no-progress", *case.get("options", []),
             *[f"--set={item}" for item in case["sets"]]]
     out, err = io.StringIO(), io.StringIO()
     rc, exception = None, None
@@ -51,7 +51,7 @@ def run_case(index: int, case: dict, folder: Path) -> dict:
 def main(cases_path: str, report_path: str) -> int:
     folder = Path(cases_path).parent
     cases = json.loads(Path(cases_path).read_text(encoding="utf-8"))
-    limit = float(os.environ.get("CLOTHSIM_FUZZ_CASE_S", "60"))
+    limit = float(os.environ.get("CLOTHSIM_FUZZ_CASE_S", "300"))
     with open(report_path, "w", encoding="utf-8") as report:
         for index, case in enumerate(cases):
             print(f"case {index}", file=sys.stderr, flush=True)
