@@ -89,6 +89,8 @@ class MeshClothSpec:
     enable_structural: bool = True
     enable_shearing: bool = True
     enable_bending: bool = True
+    handles: list = field(default_factory=list)
+    """groups of vertices moved by an animation (:class:`~clothsim.world_spec.HandleSpec`)"""
     data: MeshData | None = field(default=None, compare=False, repr=False)
     """the mesh as loaded: welded, checked and transformed"""
 

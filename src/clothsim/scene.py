@@ -16,6 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from .errors import SceneError
+from .motion import Animation
+from .world_spec import BoxSpec, HandleSpec, MeshColliderSpec, WindSpec
 from .mesh_spec import MeshClothSpec, MeshTransform, is_mesh_cloth, parse_mesh_cloth
 from .scene_limits import (DENSITY_MAX, DENSITY_MIN, DEPTH_MAX, FPS_MAX, FPS_MIN, GRAVITY_MAX, KS_MAX, LENGTH_MAX,
                            LENGTH_MIN, POINTS_MAX, SEED_MAX, STEPS_MAX)
@@ -54,6 +56,8 @@ class ClothSpec:
     enable_structural: bool = True
     enable_shearing: bool = True
     enable_bending: bool = True
+    handles: list[HandleSpec] = field(default_factory=list)
+    """groups of points moved by an animation"""
 
 
 @dataclass
@@ -61,6 +65,7 @@ class SphereSpec:
     origin: Vec3
     radius: float
     friction: float
+    animation: Animation | None = None
 
 
 @dataclass
@@ -69,6 +74,7 @@ class PlaneSpec:
     normal: Vec3
     """unit normal (normalised on load)"""
     friction: float
+    animation: Animation | None = None
 
 
 @dataclass
@@ -91,6 +97,10 @@ class Scene:
     spheres: list[SphereSpec] = field(default_factory=list)
     planes: list[PlaneSpec] = field(default_factory=list)
     simulation: SimulationSpec = field(default_factory=SimulationSpec)
+    boxes: list[BoxSpec] = field(default_factory=list)
+    mesh_colliders: list[MeshColliderSpec] = field(default_factory=list)
+    """the top-level key ``mesh``"""
+    wind: WindSpec | None = None
     source: str | None = None
     """where the scene came from, used in messages"""
 
