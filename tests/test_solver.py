@@ -44,7 +44,7 @@ def knobs(k_sets, gravity, keep, dt2):
     """the live parameters as integrate() takes them"""
     return Knobs(gravity=np.asarray(gravity, dtype=np.float64), k_over_m=np.asarray(k_sets, dtype=np.float64),
                  enabled=np.ones(6, dtype=bool), keep=float(keep), dt2=float(dt2), simulation_steps=1,
-                 self_collision=False)
+                 self_collision=False, inv_mass=np.ones(0))
 
 
 def run_integrate(P, L, free, k, springs, F):
@@ -55,6 +55,14 @@ def run_integrate(P, L, free, k, springs, F):
 
 def planes(pos: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(pos.T)
+
+
+def still(rows) -> np.ndarray:
+    """collider rows (K, C) as the kernels take them: one slot, (1, K, C + CARRY),
+    of a collider that does not move over the substep"""
+    rows = np.atleast_2d(np.asarray(rows, dtype=np.float64))
+    carry = np.tile(np.concatenate([np.eye(3).ravel(), np.zeros(3)]), (len(rows), 1))
+    return np.concatenate([rows, carry], axis=1)[None]
 
 
 def test_stencil_sets_are_the_model_springs():
@@ -275,7 +283,7 @@ def test_sphere_pushes_to_surface_with_friction():
     sphere = np.array([[0.0, 0, 0, 1.0, 0.25]])
     P = planes(np.array([[0.0, 0.5, 0.0], [0.0, 0.5, 0.0], [0.0, 2.0, 0.0]]))
     L = planes(np.array([[0.2, 1.2, 0.0], [0.2, 1.2, 0.0], [0.0, 2.0, 0.0]]))
-    collide_spheres(P, L, np.array([1.0, 0.0, 1.0]), sphere, 0, 3)
+    collide_spheres(P, L, np.array([1.0, 0.0, 1.0]), still(sphere), 0, 3, 0)
     surface = np.array([0.0, 1.0, 0.0])
     np.testing.assert_allclose(P[:, 0], L[:, 0] + 0.75 * (surface - L[:, 0]))
     np.testing.assert_array_equal(P[:, 1], [0.0, 0.5, 0.0])  # pinned: stays inside
@@ -287,7 +295,7 @@ def test_plane_puts_crossing_point_back_on_its_side():
     plane = np.array([[0.0, 0, 0, 0, 1, 0, 0.0]])
     P = planes(np.array([[0.3, -0.2, 0.1], [0.0, -0.5, 0.0]]))
     L = planes(np.array([[0.3, 0.1, 0.1], [0.0, -0.4, 0.0]]))  # the second was already below: not crossing
-    collide_planes(P, L, np.ones(2), plane, 0, 2)
+    collide_planes(P, L, np.ones(2), still(plane), 0, 2, 0)
     np.testing.assert_allclose(P[:, 0], [0.3, PLANE_OFFSET, 0.1])
     np.testing.assert_allclose(P[:, 1], [0.0, -0.5, 0.0])
 
@@ -297,14 +305,15 @@ def test_plane_friction_one_returns_to_last():
     plane = np.array([[0.0, 0, 0, 0, 1, 0, 1.0]])
     P = planes(np.array([[0.3, -0.2, 0.4]]))
     L = planes(np.array([[0.1, 0.1, 0.1]]))
-    collide_planes(P, L, np.ones(1), plane, 0, 1)
+    collide_planes(P, L, np.ones(1), still(plane), 0, 1, 0)
     np.testing.assert_allclose(P[:, 0], L[:, 0])
 
 
 def points_group(rest, free, thickness, span=np.inf):
     """the points group as self-collision takes it (the blow-up centre is not read there)"""
     return Points(rest=np.array(rest, dtype=np.float64), free=np.asarray(free, dtype=np.float64),
-                  thickness=float(thickness), center=np.zeros(3), span=float(span))
+                  thickness=float(thickness), center=np.zeros(3), span=float(span),
+                  triangles=np.zeros((0, 3), dtype=np.int32))
 
 
 def collide_in_place(P, rest, free, thickness, steps, lists, span=np.inf):

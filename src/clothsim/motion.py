@@ -70,6 +70,22 @@ class Animation:
                 "loop": self.loop}
 
 
+def slot_poses(animation: Animation | None, pivot, t0: float, dt: float, substeps: int):
+    """The rigid poses of one frame's substeps: (R_now, o_now, R_before, o_before),
+    float64 (T, 3, 3) and (T, 3), where slot s holds the pose at the end of substep s
+    (time ``t0 + (s+1) dt``) and at its start. T is ``substeps`` for a moving
+    animation and 1 for none or a still one (the rest pose, or the still offset)."""
+    if animation is None:
+        R, o = np.eye(3)[None], np.zeros((1, 3))
+        return R, o, R, o
+    if animation.is_still:
+        R, o = animation.rigid([animation.keys[0].t], pivot)
+        return R, o, R, o
+    steps = np.arange(substeps + 1, dtype=np.float64)
+    R, o = animation.rigid(t0 + steps * dt, pivot)
+    return R[1:], o[1:], R[:-1], o[:-1]
+
+
 def rotation_matrices(degrees) -> np.ndarray:
     """``Rz @ Ry @ Rx`` for angles [degrees] about x, y, z, float64 (..., 3) -> (..., 3, 3):
     the convention of a mesh's ``transform.rotate``."""

@@ -15,8 +15,11 @@ from .model import Cloth, Model, build_scene_model
 from .params import Material, Params
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
 from .solver import ClothSolver, Control
+from .solver.control import make_control
 from .solver.cloth_solver import RUNAWAY_FACTOR
 from .state import State
+from .world import Handle, pin_handles, scene_handles
+from .world_spec import BoxSpec, MeshColliderSpec, WindSpec
 
 __all__ = ["ClothView", "Material", "Params", "Simulation", "State"]
 
@@ -68,8 +71,10 @@ class ClothView:
 class Simulation:
     """A running cloth: ``step()`` advances one frame of ``params.frames_per_sec``.
 
-    ``params``, ``spheres`` and ``planes`` (friction, position) may be edited
-    between frames; nothing is rebuilt for it.
+    ``params``, the colliders (``spheres``, ``planes``, ``boxes``: friction,
+    position, animation; ``mesh_colliders``: friction, animation) and ``wind``
+    (None, or velocity, turbulence, drag, lift) may be edited between frames;
+    nothing is rebuilt for it.
 
     ``threads``: how many threads share each substep, fixed when the
     simulation is made (None: one for cloths under PARALLEL_MIN_POINTS
@@ -88,12 +93,26 @@ class Simulation:
     state: State = field(init=False)
     spheres: list[SphereSpec] = field(init=False)
     planes: list[PlaneSpec] = field(init=False)
+    boxes: list[BoxSpec] = field(init=False)
+    mesh_colliders: list[MeshColliderSpec] = field(init=False)
+    handles: list[Handle] = field(init=False)
+    wind: WindSpec | None = field(init=False)
 
     def __post_init__(self) -> None:
-        self.model = build_scene_model(self.scene)
+        model = build_scene_model(self.scene)
+        self.handles = scene_handles(self.scene, model)
+        self.model = pin_handles(model, self.handles)
         self.params = Params.from_scene(self.scene)
         self.spheres = copy.deepcopy(self.scene.spheres)
         self.planes = copy.deepcopy(self.scene.planes)
+        self.boxes = copy.deepcopy(self.scene.boxes)
+        self.mesh_colliders = [copy.copy(m) for m in self.scene.mesh_colliders]  # the shapes are shared
+        self.wind = copy.deepcopy(self.scene.wind)
+        self._mesh_shapes = None
+        if self.mesh_colliders:
+            from .solver.colliders.mesh import pack_meshes
+
+            self._mesh_shapes = pack_meshes(self.mesh_colliders)
         self.state = State.at_rest(self.model)
         self._normals: np.ndarray | None = None
         self._handle = -1
@@ -167,8 +186,13 @@ class Simulation:
 
     @property
     def control(self) -> Control:
-        """what the world imposes now: the held point and the colliders as they stand"""
-        return Control.of(self._handle, self._handle_pos, self.spheres, self.planes)
+        """what the world imposes over the next frame: the held point, the colliders,
+        handles and wind where they stand and move"""
+        return self._control(self.params.simulation_steps)
+
+    def _control(self, substeps: int) -> Control:
+        return make_control(self._handle, self._handle_pos, self, self.state.time, self.params.dt, substeps,
+                            self._mesh_shapes)
 
     @property
     def kernels_compiled(self) -> bool:
@@ -187,7 +211,7 @@ class Simulation:
         """Advance one frame (or ``substeps`` substeps); raise SimulationError on blow-up."""
         p = self.params
         n = p.simulation_steps if substeps is None else substeps
-        far2 = self.solver.step(self.state, self.control, p, n)
+        far2 = self.solver.step(self.state, self._control(n), p, n)
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None

@@ -78,7 +78,8 @@ class ClothSolver:
         else:
             self._build_mesh(first)
         self.scratch = Scratch(P=np.zeros((3, n)), L=np.zeros((3, n)), F=self._forces,
-                               masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64))
+                               masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64),
+                               Q=np.zeros((3, n)), W=np.zeros((3, n)))
         kernel_cache.mark_warm(BUILD_VARIANT)
 
     def _points(self, size: float) -> None:
@@ -87,7 +88,7 @@ class ClothSolver:
         thickness = max(c.thickness for c in model.cloths)
         self.points = Points(rest=model.rest_positions, free=(~model.pinned).astype(np.float64),
                              thickness=float(thickness), center=model.rest_positions.mean(axis=0),
-                             span=2.0 * RUNAWAY_FACTOR * size)
+                             span=2.0 * RUNAWAY_FACTOR * size, triangles=model.triangles)
         self.runaway2 = (RUNAWAY_FACTOR * size) ** 2
         """squared distance from the start past which a point means the run blew up [m²]"""
 
@@ -132,7 +133,8 @@ class ClothSolver:
                      k_over_m=(np.array([k, k, 0.2 * k]) * enabled)[SET_KIND],
                      enabled=enabled[SET_KIND], keep=1.0 - material.damping / 100.0, dt2=params.dt * params.dt,
                      simulation_steps=int(params.simulation_steps),
-                     self_collision=bool(params.self_collision))
+                     self_collision=bool(params.self_collision),
+                     inv_mass=np.full(self.model.num_points, 1.0 / self.model.cloths[0].point_mass(material.density)))
 
     def _mesh_knobs(self, params: Params) -> MeshKnobs:
         cloths, materials = self.model.cloths, params.cloths
@@ -142,10 +144,12 @@ class ClothSolver:
                       for c, m in zip(cloths, materials)])
         enabled = np.array([m.enabled for m in materials])
         keep = np.repeat(np.array([1.0 - m.damping / 100.0 for m in materials]), self._cloth_sizes)
+        inv_mass = np.repeat(np.array([1.0 / c.point_mass(m.density) for c, m in zip(cloths, materials)]),
+                             self._cloth_sizes)
         return MeshKnobs(gravity=np.asarray(params.gravity, dtype=np.float64),
                          k_over_m=(k * enabled).ravel(), enabled=enabled.ravel(), keep=keep,
                          dt2=params.dt * params.dt, simulation_steps=int(params.simulation_steps),
-                         self_collision=bool(params.self_collision))
+                         self_collision=bool(params.self_collision), inv_mass=inv_mass)
 
     def variant(self, control: Control, params: Params) -> str:
         """The name of the compiled specialization a step with these takes: serial
@@ -155,6 +159,8 @@ class ClothSolver:
         if self.path == "mesh":
             parts = ["mesh-" + parts[0]]
         parts += [name for name in KINDS if getattr(control, name) is not None]
+        parts += [name for name, field in (("handles", "moved_points"), ("wind", "wind"))
+                  if getattr(control, field) is not None]
         return "+".join(parts)
 
     def is_compiled(self, control: Control, params: Params) -> bool:

@@ -15,7 +15,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .colliders import pack_colliders
 
 
 class Points(NamedTuple):
@@ -31,6 +30,8 @@ class Points(NamedTuple):
     """the middle of the rest layout [m], (3,): the blow-up test measures from it"""
     span: float
     """[m]: a spread of the points beyond which the run has blown up and self-collision stops looking"""
+    triangles: np.ndarray
+    """the cloths' triangles, int32 (T, 3): the wind acts on each"""
 
 
 class Knobs(NamedTuple):
@@ -51,6 +52,8 @@ class Knobs(NamedTuple):
     self_collision: bool
     """whether pairs closer than twice the thickness push apart (a switch, not a
     variant compiled apart: the viewer turns it live)"""
+    inv_mass: np.ndarray
+    """one over each point's mass [1/mass unit], float64 (N,): how a force (the wind's) moves it"""
 
 
 class MeshKnobs(NamedTuple):
@@ -73,27 +76,44 @@ class MeshKnobs(NamedTuple):
     """substeps per frame: a self-collision push is divided by it"""
     self_collision: bool
     """whether pairs closer than twice the thickness push apart"""
+    inv_mass: np.ndarray
+    """one over each point's mass (its cloth's) [1/mass unit], float64 (N,)"""
 
 
 class Control(NamedTuple):
-    """What the world imposes from outside, read every substep and changed between frames."""
+    """What the world imposes from outside over one frame's substeps, made anew
+    each frame (:func:`.control.make_control`) from the world as it stands and moves.
+
+    A collider kind's rows are float64 (T, K, C): slot s is substep s of the
+    frame (T = 1 when nothing of the kind moves; see :mod:`.colliders.motion_rows`).
+    A field is None when the scene has none of it: numba then compiles nothing for it."""
 
     handle: int
     """a point held by the user's grab, or -1"""
     handle_pos: np.ndarray
     """where the held point is held [m], float64 (3,)"""
     spheres: np.ndarray | None
-    """the spheres as they stand now, (cx, cy, cz, r, friction) rows (K, 5), or None:
-    see :mod:`.colliders.sphere`"""
+    """the spheres: see :mod:`.colliders.sphere`"""
     planes: np.ndarray | None
-    """the planes as they stand now, (px, py, pz, nx, ny, nz, friction) rows (K, 7),
-    or None: see :mod:`.colliders.plane`"""
-
-    @classmethod
-    def of(cls, handle: int, handle_pos, spheres, planes) -> Control:
-        """The group from the held point and the scene's collider objects."""
-        return cls(handle=int(handle), handle_pos=np.asarray(handle_pos, dtype=np.float64),
-                   **pack_colliders(spheres, planes))
+    """the planes: see :mod:`.colliders.plane`"""
+    boxes: np.ndarray | None
+    """the boxes: see :mod:`.colliders.box`"""
+    meshes: np.ndarray | None
+    """the mesh colliders' poses: see :mod:`.colliders.mesh`"""
+    mesh_tris: np.ndarray | None
+    """every mesh collider's triangles in its rest pose, float64 (Ttot, 9)"""
+    mesh_grid: np.ndarray | None
+    """each mesh collider's cell grid, one row per mesh: see :mod:`.colliders.mesh`"""
+    mesh_cells: np.ndarray | None
+    """where each cell's triangles start in ``mesh_items``, int64 (cells + 1,)"""
+    mesh_items: np.ndarray | None
+    """the triangles of each cell, int32"""
+    moved_points: np.ndarray | None
+    """the points of every handle, int64 (H,): see :mod:`.handles`"""
+    moved_to: np.ndarray | None
+    """where they are at the end of each substep [m], float64 (T, H, 3)"""
+    wind: np.ndarray | None
+    """the wind's row: see :mod:`.wind`"""
 
 
 class Scratch(NamedTuple):
@@ -108,3 +128,8 @@ class Scratch(NamedTuple):
     the general path's accelerations of the points, (3, N)"""
     masks: np.ndarray
     """each part's Provot bits, uint64 (parts, 2, words): see :func:`~.provot.provot`"""
+    Q: np.ndarray
+    """positions after the colliders, float64 (3, N): the segments that the settle
+    pass after Provot tests (only where the scene has boxes or mesh colliders)"""
+    W: np.ndarray
+    """the wind's forces on the points, float64 (3, N) (only where there is wind)"""

@@ -5,11 +5,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .colliders import collide
+from .colliders import collide, has_settle, settle
+from .handles import place_handles
+from .wind import blow
 from .meshsprings import mesh_gravity, mesh_provot, mesh_spring_forces, mesh_verlet
 from .selfcollide import self_collide
 from .shared import part_range
-from .step import ADVANCE_OPTIONS, _farthest, _from_planes, _hold, _renamed, _to_planes
+from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _from_planes, _hold, _renamed, _to_planes
 
 
 def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, control, lists, pairs, scratch,
@@ -23,8 +25,9 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     Returns (largest squared distance of a point from ``points.center``, inf
     when not finite; the neighbour list's pairs array).
 
-    Order per substep, as in the CS184 course code: forces and Verlet,
-    self-collision, the colliders, then the Provot pass. Cut into the parts
+    Order per substep as in :func:`~.step._advance`: forces and Verlet, the
+    handles and the wind, self-collision, the colliders, the Provot pass and
+    the settle pass. Cut into the parts
     of ``mesh_springs.part_start``: the forces by ranges of springs, the Verlet
     step, the colliders and each part's own Provot springs by ranges of
     points, the springs across parts after the parts, on one thread. Compiled twice, as
@@ -42,7 +45,9 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     _to_planes(last_positions, L)
     n = P.shape[1]
     mesh_gravity(mesh_knobs, A, np.int64(0), n)  # a variable, not a literal: see docs/architecture.md
-    for _ in range(substeps):
+    W, Q = scratch.W, scratch.Q
+    settling = has_settle(control)
+    for s in range(substeps):
         for t in prange(parts):
             mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[t], part_start[t + 1])
         mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[parts], part_start[parts + 1])
@@ -51,15 +56,24 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
             mesh_verlet(P, L, free, mesh_knobs, A, lo, hi)
         if handle >= 0:
             _hold(P, handle, handle_pos)
+        place_handles(P, control.moved_points, control.moved_to, s)
+        blow(P, L, points, mesh_knobs.inv_mass, mesh_knobs.dt2, control.wind, W, s)
         if self_collision:
             pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
         for t in prange(parts):
             lo, hi = part_range(n, parts, t)
-            collide(P, L, free, control, lo, hi)
+            collide(P, L, free, control, lo, hi, s)
+            if settling:
+                _copy_range(P, Q, lo, hi)
             mesh_provot(P, mesh_springs, enabled, part_start[t], part_start[t + 1])
         mesh_provot(P, mesh_springs, enabled, part_start[parts], part_start[parts + 1])
+        if settling:
+            for t in prange(parts):
+                lo, hi = part_range(n, parts, t)
+                settle(P, Q, free, control, lo, hi, s)
         if handle >= 0:
             _hold(P, handle, handle_pos)
+        place_handles(P, control.moved_points, control.moved_to, s)
     _from_planes(P, positions)
     _from_planes(L, last_positions)
     return _farthest(P, center), pairs

@@ -76,7 +76,10 @@ def start(variant: str) -> subprocess.Popen | None:
 
 def calls(variant: str) -> list:
     """(kernel, arguments) in the reverse of the order the substep types them."""
-    from .colliders import collide
+    from .colliders import collide, has_settle, settle
+    from .control import make_control
+    from .handles import place_handles
+    from .wind import blow
     from .groups import Control, Knobs, Points, Scratch
     from .selfcollide import NeighbourList
     from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs
@@ -87,7 +90,6 @@ def calls(variant: str) -> list:
     from .springs import build_stencil, force_buffer, gather_ahead, integrate
     from .step import _farthest, _from_planes, _to_planes
     from ..mesh import vertex_normals
-    from ..scene import PlaneSpec, SphereSpec
 
     features = set(variant.split("+")[1:])
     mesh = variant.startswith("mesh-")
@@ -100,21 +102,22 @@ def calls(variant: str) -> list:
     for a in (rest, pinned, triangles):
         a.setflags(write=False)  # as the model's arrays are
     springs = build_stencil(rest, pinned, rows, cols)
-    points = Points(rest=rest, free=np.ones(n), thickness=0.01, center=np.zeros(3), span=1e3)
+    points = Points(rest=rest, free=np.ones(n), thickness=0.01, center=np.zeros(3), span=1e3, triangles=triangles)
     knobs = Knobs(gravity=np.zeros(3), k_over_m=np.ones(6), enabled=np.ones(6, dtype=bool), keep=1.0,
-                  dt2=1e-6, simulation_steps=1, self_collision=True)
-    spheres = [SphereSpec((0.0, 0.0, 0.0), 0.1, 0.3)] if "spheres" in features else []
-    planes = [PlaneSpec((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 0.5)] if "planes" in features else []
-    control = Control.of(-1, np.zeros(3), spheres, planes)
+                  dt2=1e-6, simulation_steps=1, self_collision=True, inv_mass=np.ones(n))
+    control = make_control(-1, np.zeros(3), _world(features, n), 0.0, 1e-3, 1)
     scratch = Scratch(P=np.ascontiguousarray(rest.T), L=np.ascontiguousarray(rest.T),
-                      F=force_buffer(springs, n), masks=np.zeros((1, 2, 2), dtype=np.uint64))
+                      F=force_buffer(springs, n), masks=np.zeros((1, 2, 2), dtype=np.uint64),
+                      Q=np.zeros((3, n)), W=np.zeros((3, n)))
     lists = NeighbourList.allocate(n, cols)
     P, L, F = scratch.P, scratch.L, scratch.F
     zero, i64 = np.int64(0), np.int64(n)
     f32 = np.float32(1.0)
     out = [(_farthest, (P, points.center)),
            (_provot_both, (P, springs, knobs.enabled, scratch.masks[0], zero, i64)),
-           (collide, (P, L, points.free, control, zero, i64))]
+           (settle, (P, scratch.Q, points.free, control, zero, i64, zero)),
+           (has_settle, (control,)),
+           (collide, (P, L, points.free, control, zero, i64, zero))]
     push, count, touched = lists.push, lists.count, lists.touched
     out += [(apply_pushes, (P, push, count, points.free, 1.0, zero, i64)),
             (apply_sparse, (P, push, count, points.free, 1.0, touched, lists.tally)),
@@ -127,6 +130,8 @@ def calls(variant: str) -> list:
             (_copy_pairs, (lists.pairs, lists.pairs, zero)),
             (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
             (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
+    out += [(blow, (P, L, points, knobs.inv_mass, knobs.dt2, control.wind, scratch.W, zero)),
+            (place_handles, (P, control.moved_points, control.moved_to, zero))]
     if mesh:
         out = [(k, a) for k, a in out if k is not _provot_both] + _mesh_calls(rest, pinned, P, L, points)
     else:
@@ -153,13 +158,32 @@ def _mesh_calls(rest, pinned, P, L, points) -> list:
     n = P.shape[1]
     knobs = MeshKnobs(gravity=np.zeros(3), k_over_m=np.ones((1, 3)).ravel(),
                       enabled=np.ones((1, 3), dtype=bool).ravel(), keep=np.repeat(np.ones(1), n), dt2=1e-6,
-                      simulation_steps=1, self_collision=True)
+                      simulation_steps=1, self_collision=True, inv_mass=np.ones(n))
     A = np.zeros((3, n))
     zero, count, s = np.int64(0), np.int64(n), np.int64(len(springs.a))
     return [(mesh_provot, (P, springs, knobs.enabled, zero, s)),
             (mesh_verlet, (P, L, points.free, knobs, A, zero, count)),
             (mesh_spring_forces, (P, knobs, springs, A, zero, s)),
             (mesh_gravity, (knobs, A, zero, count))]
+
+
+def _world(features: set[str], n: int):
+    """A world of one of each thing the variant names (see
+    :meth:`~.cloth_solver.ClothSolver.variant`), on the 4x4 cloth of :func:`calls`."""
+    from types import SimpleNamespace
+
+    from ..motion import Animation, Keyframe
+    from ..scene import PlaneSpec, SphereSpec
+    from ..world_spec import BoxSpec, WindSpec
+
+    still = Animation((Keyframe(0.0),))
+    return SimpleNamespace(
+        spheres=[SphereSpec((0.0, 0.0, 0.0), 0.1, 0.3)] if "spheres" in features else [],
+        planes=[PlaneSpec((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 0.5)] if "planes" in features else [],
+        boxes=[BoxSpec((0.0, 0.0, 0.0), (0.1, 0.1, 0.1), 0.5)] if "boxes" in features else [],
+        handles=[SimpleNamespace(points=np.array([0]), start=np.zeros((1, 3)), pivot=np.zeros(3),
+                                 animation=still)] if "handles" in features else [],
+        wind=WindSpec((1.0, 0.0, 0.0)) if "wind" in features else None)
 
 
 @njit(cache=False)

@@ -8,7 +8,9 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .colliders import collide
+from .colliders import collide, has_settle, settle
+from .handles import place_handles
+from .wind import blow
 from .provot import provot
 from .springs import CHUNK, gather_ahead, integrate
 from .selfcollide import self_collide
@@ -74,9 +76,11 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     the neighbour list, a new one after each build).
 
     Order per substep, as in the CS184 course code: forces and Verlet,
-    self-collision, the colliders, then the Provot pass. ``control.handle``
-    (or -1) is a point held at ``control.handle_pos`` by the user's grab: it
-    moves kinematically.
+    self-collision, the colliders, then the Provot pass; clothsim's own stages
+    fit between: the handles and the wind after Verlet, and where the scene
+    has boxes or mesh colliders a settle pass after Provot (see
+    :mod:`.colliders`). ``control.handle`` (or -1) is a point held at
+    ``control.handle_pos`` by the user's grab: it moves kinematically.
 
     The substep is cut into as many parts as ``scratch.masks`` has: ranges
     of points, each moved, collided and constrained by one part; the Provot
@@ -98,7 +102,9 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     # compiles a kernel once per distinct literal argument, and the first run
     # of a scene paid for each. Provot's switch is the exception: compiled for
     # each value, its pass ran faster
-    for _ in range(substeps):
+    W, Q = scratch.W, scratch.Q
+    settling = has_settle(control)
+    for s in range(substeps):
         # a part's last springs reach into the next part's first points: those
         # are moved only once every part has its forces
         for t in prange(parts):
@@ -109,17 +115,26 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
             gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
         if handle >= 0:
             _hold(P, handle, handle_pos)
+        place_handles(P, control.moved_points, control.moved_to, s)
+        blow(P, L, points, knobs.inv_mass, knobs.dt2, control.wind, W, s)
         if self_collision:
             pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
         for t in prange(parts):
             lo, hi = _chunk_range(n, parts, t)
-            collide(P, L, free, control, lo, hi)
+            collide(P, L, free, control, lo, hi, s)
+            if settling:
+                _copy_range(P, Q, lo, hi)
             provot(P, springs, enabled, masks[t], lo, hi, False)
         for t in range(1, parts):
             lo, _ = _chunk_range(n, parts, t)
             provot(P, springs, enabled, masks[0], lo, lo, True)
+        if settling:
+            for t in prange(parts):
+                lo, hi = _chunk_range(n, parts, t)
+                settle(P, Q, free, control, lo, hi, s)
         if handle >= 0:
             _hold(P, handle, handle_pos)
+        place_handles(P, control.moved_points, control.moved_to, s)
     _from_planes(P, positions)
     _from_planes(L, last_positions)
     return _farthest(P, center), pairs
@@ -148,6 +163,13 @@ def _chunk_range(n, parts, t):
     """Points ``lo:hi`` of part t of ``parts``, cut at multiples of CHUNK."""
     size = ((n + parts - 1) // parts + CHUNK - 1) // CHUNK * CHUNK
     return min(t * size, n), min((t + 1) * size, n)
+
+
+@njit(cache=True, inline="always")
+def _copy_range(P, Q, lo, hi):
+    for c in range(3):
+        for p in range(lo, hi):
+            Q[c, p] = P[c, p]
 
 
 @njit(cache=True, inline="always")

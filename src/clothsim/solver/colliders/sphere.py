@@ -1,8 +1,10 @@
 """Spheres: points inside are put on the surface, with CS184 friction.
 
-A sphere is a row ``(cx, cy, cz, r, friction)`` of a float64 array, (K, 5);
-positions are (3, N) coordinate planes (see :mod:`clothsim.solver.springs`).
-The loop is a branch-free select so that it vectorises.
+A sphere is a row ``(cx, cy, cz, r, friction, carry...)`` of float64 rows
+(T, K, 5 + CARRY) (see :mod:`.motion_rows`): its centre at the end of the
+substep and how it moved over it. Positions are (3, N) coordinate planes
+(see :mod:`clothsim.solver.springs`). Each loop is a branch-free select so
+that it vectorises.
 """
 
 from __future__ import annotations
@@ -12,44 +14,71 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
+from ...motion import slot_poses
 from ..shared import KERNEL_OPTIONS
+from .motion_rows import carried, carry_columns, stack_slots
 
 
-def pack(spheres: Sequence) -> np.ndarray | None:
-    """Rows (cx, cy, cz, r, friction) from objects with origin, radius, friction;
-    None when there are none, so that :func:`collide_spheres` is not compiled."""
+def pack(spheres: Sequence, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -> np.ndarray | None:
+    """Rows from objects with origin, radius, friction and animation (or None) for a
+    frame of ``substeps`` substeps of ``dt`` [s] from time ``t0``; None when there
+    are none, so that :func:`collide_spheres` is not compiled."""
     if not spheres:
         return None
-    out = np.zeros((len(spheres), 5))
-    for k, s in enumerate(spheres):
-        out[k] = (*s.origin, s.radius, s.friction)
-    return out
+    out = []
+    for s in spheres:
+        R, o, Rb, ob = slot_poses(getattr(s, "animation", None), s.origin, t0, dt, substeps)
+        centre = R @ np.asarray(s.origin, dtype=np.float64) + o
+        fixed = np.broadcast_to(np.array([s.radius, s.friction], dtype=np.float64), (len(R), 2))
+        out.append(np.concatenate([centre, fixed, carry_columns(R, o, Rb, ob)], axis=1))
+    return stack_slots(out)
 
 
 @njit(**KERNEL_OPTIONS)
-def collide_spheres(P, L, free, spheres, lo, hi):
+def collide_spheres(P, L, free, spheres, lo, hi, s):
     """Points ``lo:hi`` inside a sphere go to the surface along the ray from the centre,
-    then back toward their last position by the friction: last + (1-f)(surface-last).
+    then back toward their last position by the friction: last + (1-f)(surface-last),
+    where "last" is carried along by the sphere's motion over substep ``s``
+    (unmoved while no sphere moves, as in CS184).
     ``spheres`` None: nothing (the branch is pruned when numba compiles it)."""
     if spheres is None:
         return
+    rows = spheres[min(s, spheres.shape[0] - 1)]
+    moving = spheres.shape[0] > 1
     x, y, z = P[0, lo:hi], P[1, lo:hi], P[2, lo:hi]
     lx, ly, lz = L[0, lo:], L[1, lo:], L[2, lo:]
     free = free[lo:]
-    for k in range(spheres.shape[0]):
-        cx, cy, cz, r, fr = spheres[k, 0], spheres[k, 1], spheres[k, 2], spheres[k, 3], spheres[k, 4]
+    for k in range(rows.shape[0]):
+        row = rows[k]
+        cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
         r2 = r * r
         keep = 1.0 - fr
+        if not moving:
+            for p in range(x.shape[0]):
+                dx = x[p] - cx
+                dy = y[p] - cy
+                dz = z[p] - cz
+                d2 = dx * dx + dy * dy + dz * dz
+                hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0
+                f = r / np.sqrt(d2 if hit else 1.0)
+                nx = lx[p] + keep * (cx + dx * f - lx[p])
+                ny = ly[p] + keep * (cy + dy * f - ly[p])
+                nz = lz[p] + keep * (cz + dz * f - lz[p])
+                x[p] = nx if hit else x[p]
+                y[p] = ny if hit else y[p]
+                z[p] = nz if hit else z[p]
+            continue
         for p in range(x.shape[0]):
             dx = x[p] - cx
             dy = y[p] - cy
             dz = z[p] - cz
             d2 = dx * dx + dy * dy + dz * dz
             hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0
-            s = r / np.sqrt(d2 if hit else 1.0)
-            nx = lx[p] + keep * (cx + dx * s - lx[p])
-            ny = ly[p] + keep * (cy + dy * s - ly[p])
-            nz = lz[p] + keep * (cz + dz * s - lz[p])
+            f = r / np.sqrt(d2 if hit else 1.0)
+            mx, my, mz = carried(row, 5, lx[p], ly[p], lz[p])
+            nx = mx + keep * (cx + dx * f - mx)
+            ny = my + keep * (cy + dy * f - my)
+            nz = mz + keep * (cz + dz * f - mz)
             x[p] = nx if hit else x[p]
             y[p] = ny if hit else y[p]
             z[p] = nz if hit else z[p]

@@ -1,0 +1,35 @@
+"""The control of one frame: what the world imposes on the cloth, made anew each frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .colliders import pack_colliders
+from .groups import Control
+from .handles import pack_handles
+from .wind import pack_wind
+
+MESH_FIELDS = ("mesh_tris", "mesh_grid", "mesh_cells", "mesh_items")
+"""the fields of a mesh collider's shape: built once per scene, not per frame"""
+
+
+def make_control(handle: int, handle_pos, world, t0: float = 0.0, dt: float = 0.0, substeps: int = 1,
+                 mesh_shapes: dict | None = None) -> Control:
+    """The :class:`~.groups.Control` of a frame from time ``t0`` [s] of ``substeps``
+    substeps of ``dt`` [s]: the user's held point, and ``world``'s colliders
+    (``spheres``, ``planes``, ``boxes``, ``mesh_colliders``), ``handles`` and
+    ``wind`` where they stand and move over the frame. ``mesh_shapes``: the
+    mesh colliders' shapes as :func:`.colliders.mesh.pack_meshes` made them, once."""
+    moved_points, moved_to = pack_handles(getattr(world, "handles", ()), t0, dt, substeps)
+    meshes = None
+    shapes = dict.fromkeys(MESH_FIELDS)
+    colliders = getattr(world, "mesh_colliders", ())
+    if colliders:
+        from .colliders.mesh import pack_poses
+
+        meshes = pack_poses(colliders, t0, dt, substeps)
+        shapes.update(mesh_shapes)
+    return Control(handle=int(handle), handle_pos=np.asarray(handle_pos, dtype=np.float64),
+                   **pack_colliders(world, t0, dt, substeps), meshes=meshes, **shapes,
+                   moved_points=moved_points, moved_to=moved_to,
+                   wind=pack_wind(getattr(world, "wind", None), t0, dt))

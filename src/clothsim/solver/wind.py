@@ -1,0 +1,141 @@
+"""Wind: drag and lift on every triangle from the air's velocity relative to it.
+
+The force on a triangle of area A and unit normal n, with u the air's
+velocity relative to the triangle (its corners' mean velocity over the
+substep) and u_n = |u·n|:
+
+- drag ``½ ρ C_d A u_n² n̂`` along the normal, turned to face the air;
+- lift ``½ ρ C_l A u_n |u_t| t̂``, with u_t the part of u across the
+  triangle and t̂ the direction, in the plane of u and n, square to u.
+
+Each corner takes a third. ρ is AIR_DENSITY in the simulation's own mass
+unit: CS184's ``density`` of 150 is read as grams per square metre (a
+typical cotton), so the mass unit is the gram. Gusts (``turbulence``) are
+the same over the whole scene: the air's velocity plus ``turbulence`` x its
+speed times a seeded sum of slow sines along and across it.
+
+The control's ``wind`` row (float64): velocity (3), turbulence, drag, lift,
+ρ, the frame's start time, the substep, the number of gust terms G, then G
+terms of (angular frequency, phase, direction x amplitude (3)).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .shared import KERNEL_OPTIONS
+
+AIR_DENSITY = 1200.0
+"""[g/m³]: 1.2 kg/m³ in the simulation's mass unit (see the module)"""
+
+GUSTS = 6
+"""gust terms: two along the wind and two across it each way"""
+
+HEAD = 10
+"""the wind row's columns before its gust terms"""
+
+
+def gust_terms(seed: int) -> np.ndarray:
+    """(GUSTS, 2) seeded angular frequencies [rad/s] (periods of 0.5-4 s) and phases"""
+    rng = np.random.default_rng(seed)
+    return np.stack([2 * np.pi / rng.uniform(0.5, 4.0, GUSTS), rng.uniform(0, 2 * np.pi, GUSTS)], axis=1)
+
+
+def pack_wind(wind, t0: float = 0.0, dt: float = 0.0) -> np.ndarray | None:
+    """The wind row from an object with velocity, turbulence, drag, lift and seed,
+    for a frame from ``t0`` in substeps of ``dt`` [s]; None for no wind, so that
+    :func:`blow` is not compiled."""
+    if wind is None:
+        return None
+    v = np.asarray(wind.velocity, dtype=np.float64)
+    speed = float(np.linalg.norm(v))
+    along = v / speed if speed > 0 else np.array([1.0, 0.0, 0.0])
+    side = np.cross(along, [0.0, 1.0, 0.0] if abs(along[1]) < 0.9 else [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    up = np.cross(side, along)
+    directions = np.array([along, along, side, side, up, up]) * np.array([[0.5], [0.5], [0.25], [0.25], [0.25], [0.25]])
+    terms = np.concatenate([gust_terms(int(wind.seed)), directions], axis=1)
+    head = [*v, wind.turbulence, wind.drag, wind.lift, AIR_DENSITY, t0, dt, GUSTS]
+    return np.concatenate([np.array(head, dtype=np.float64), terms.ravel()])
+
+
+@njit(cache=True, inline="always")
+def _air(wind, t):
+    """the air's velocity at time t [s] (the wind plus its gusts) [m/s]"""
+    ux, uy, uz = wind[0], wind[1], wind[2]
+    gust = wind[3] * np.sqrt(ux * ux + uy * uy + uz * uz)
+    if gust > 0.0:
+        for g in range(int(wind[9])):
+            c = HEAD + 5 * g
+            f = gust * np.sin(wind[c] * t + wind[c + 1])
+            ux += f * wind[c + 2]
+            uy += f * wind[c + 3]
+            uz += f * wind[c + 4]
+    return ux, uy, uz
+
+
+@njit(**KERNEL_OPTIONS)
+def blow(P, L, points, inv_mass, dt2, wind, W, s):
+    """Move the free points of the (3, N) positions P by the wind's forces over
+    substep ``s``: each triangle's velocity is its corners' (P - L) over the
+    substep, the forces gather in the (3, N) scratch W, and a point moves by
+    ``dt² F / m``, with ``inv_mass`` (N,) the knobs' and ``dt2`` the substep
+    squared [s²]. ``wind``: the control's row; None: nothing (numba prunes a
+    branch on an argument that is None, not on a field)."""
+    if wind is None:
+        return
+    tris, free = points.triangles, points.free
+    dt = wind[8]
+    ax, ay, az = _air(wind, wind[7] + (s + 1) * dt)
+    half_rho = 0.5 * wind[6]
+    drag, lift = wind[4], wind[5]
+    inv_dt = 1.0 / dt
+    W[:, :] = 0.0
+    for t in range(tris.shape[0]):
+        a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
+        e1x, e1y, e1z = P[0, b] - P[0, a], P[1, b] - P[1, a], P[2, b] - P[2, a]
+        e2x, e2y, e2z = P[0, c] - P[0, a], P[1, c] - P[1, a], P[2, c] - P[2, a]
+        nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+        n2 = nx * nx + ny * ny + nz * nz
+        if not n2 > 0.0:
+            continue
+        inv_n = 1.0 / np.sqrt(n2)
+        area = 0.5 * n2 * inv_n
+        nx, ny, nz = nx * inv_n, ny * inv_n, nz * inv_n
+        third = inv_dt / 3.0
+        ux = ax - (P[0, a] - L[0, a] + P[0, b] - L[0, b] + P[0, c] - L[0, c]) * third
+        uy = ay - (P[1, a] - L[1, a] + P[1, b] - L[1, b] + P[1, c] - L[1, c]) * third
+        uz = az - (P[2, a] - L[2, a] + P[2, b] - L[2, b] + P[2, c] - L[2, c]) * third
+        un = ux * nx + uy * ny + uz * nz
+        if un < 0.0:
+            nx, ny, nz, un = -nx, -ny, -nz, -un
+        scale = half_rho * area / 3.0
+        fx, fy, fz = drag * un * un * nx, drag * un * un * ny, drag * un * un * nz
+        if lift != 0.0:
+            # across u, in the plane of u and n: n less its part along u
+            u2 = ux * ux + uy * uy + uz * uz
+            along = un / u2 if u2 > 0.0 else 0.0
+            px, py, pz = nx - along * ux, ny - along * uy, nz - along * uz
+            p2 = px * px + py * py + pz * pz
+            if p2 > 0.0:
+                tx, ty, tz = ux - un * nx, uy - un * ny, uz - un * nz
+                k = lift * un * np.sqrt((tx * tx + ty * ty + tz * tz) / p2)
+                fx += k * px
+                fy += k * py
+                fz += k * pz
+        fx, fy, fz = fx * scale, fy * scale, fz * scale
+        W[0, a] += fx
+        W[1, a] += fy
+        W[2, a] += fz
+        W[0, b] += fx
+        W[1, b] += fy
+        W[2, b] += fz
+        W[0, c] += fx
+        W[1, c] += fy
+        W[2, c] += fz
+    for p in range(P.shape[1]):
+        k = free[p] * dt2 * inv_mass[p]
+        P[0, p] += k * W[0, p]
+        P[1, p] += k * W[1, p]
+        P[2, p] += k * W[2, p]
