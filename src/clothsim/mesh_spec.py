@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 GRID_KEYS = ("width", "height", "num_width_points", "num_height_points", "orientation", "pinned")
 MATERIAL_DEFAULTS: dict[str, Any] = {"damping": 0.2, "density": 150.0, "ks": 5000.0, "enable_structural": True,
                                      "enable_shearing": True, "enable_bending": True}
-MESH_KEYS = {"mesh", "transform", "pinned_vertices", "pinned_region", "thickness"} | set(MATERIAL_DEFAULTS)
+MESH_KEYS = {"mesh", "transform", "pinned_vertices", "pinned_region", "thickness", "handles"} | set(MATERIAL_DEFAULTS)
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,8 @@ class MeshClothSpec:
         if self.pinned_region is not None:
             out["pinned_region"] = {"min": list(self.pinned_region[0]), "max": list(self.pinned_region[1])}
         out.update({name: getattr(self, name) for name in MATERIAL_DEFAULTS})
+        if self.handles:
+            out["handles"] = [h.to_dict() for h in self.handles]
         return out
 
 
@@ -115,6 +117,7 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
     """Validate the mesh cloth ``c`` at key path ``key`` and load its mesh."""
     # here, not at the top: numpy only for a scene that has a mesh
     from .meshfile import MeshFileError, load_mesh
+    from .world_reader import parse_mesh_handles
 
     for name in c:
         if name in GRID_KEYS:
@@ -137,12 +140,13 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
             print(f"clothsim: warning: {r.source or '<scene>'}: {key}.mesh: {shown}: {count} "
                   f"{'vertex' if count == 1 else 'vertices'} {what}", file=sys.stderr)
     material = {name: c.get(name, default) for name, default in MATERIAL_DEFAULTS.items()}
+    pinned = _pinned_vertices(r, c.get("pinned_vertices", []), f"{key}.pinned_vertices", data, shown)
     return MeshClothSpec(
         mesh=mesh,
         path=os.path.abspath(shown),
         thickness=r.number(c["thickness"], f"{key}.thickness", lo=LENGTH_MIN, hi=LENGTH_MAX),
         transform=transform,
-        pinned_vertices=_pinned_vertices(r, c.get("pinned_vertices", []), f"{key}.pinned_vertices", data, shown),
+        pinned_vertices=pinned,
         pinned_region=_region(r, c["pinned_region"], f"{key}.pinned_region") if "pinned_region" in c else None,
         damping=r.number(material["damping"], f"{key}.damping", lo=0, hi=100),
         density=r.number(material["density"], f"{key}.density", lo=DENSITY_MIN, hi=DENSITY_MAX),
@@ -150,6 +154,7 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
         enable_structural=r.boolean(material["enable_structural"], f"{key}.enable_structural"),
         enable_shearing=r.boolean(material["enable_shearing"], f"{key}.enable_shearing"),
         enable_bending=r.boolean(material["enable_bending"], f"{key}.enable_bending"),
+        handles=parse_mesh_handles(r, c["handles"], f"{key}.handles", data, shown, pinned) if "handles" in c else [],
         data=data,
     )
 

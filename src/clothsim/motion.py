@@ -11,9 +11,10 @@ after the last the last holds, unless ``loop`` repeats the keys' span.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+if TYPE_CHECKING:  # numpy loads when an animation is sampled, not with the command line's --help
+    import numpy as np
 
 Vec3 = tuple[float, float, float]
 
@@ -45,6 +46,8 @@ class Animation:
 
     def offsets(self, times) -> tuple[np.ndarray, np.ndarray]:
         """(translation [m], angles [degrees]) at each of ``times`` [s], float64 (T, 3) each."""
+        import numpy as np
+
         times = np.atleast_1d(np.asarray(times, dtype=np.float64))
         kt = np.array([k.t for k in self.keys])
         if self.loop and len(kt) > 1 and kt[-1] > kt[0]:
@@ -59,6 +62,8 @@ class Animation:
         """The pose at each of ``times``: (R float64 (T, 3, 3), o float64 (T, 3)) with
         ``x_now = R @ x_rest + o`` for a point ``x_rest`` of the rest pose, the
         rotation taken about ``pivot`` [m], (3,)."""
+        import numpy as np
+
         tr, rot = self.offsets(times)
         R = rotation_matrices(rot)
         pivot = np.asarray(pivot, dtype=np.float64)
@@ -89,6 +94,8 @@ def slot_poses(animation: Animation | None, pivot, t0: float, dt: float, substep
 def rotation_matrices(degrees) -> np.ndarray:
     """``Rz @ Ry @ Rx`` for angles [degrees] about x, y, z, float64 (..., 3) -> (..., 3, 3):
     the convention of a mesh's ``transform.rotate``."""
+    import numpy as np
+
     a = np.radians(np.asarray(degrees, dtype=np.float64))
     c, s = np.cos(a), np.sin(a)
     cx, cy, cz = c[..., 0], c[..., 1], c[..., 2]

@@ -17,7 +17,7 @@ from typing import Any
 
 from .errors import SceneError
 from .motion import Animation
-from .world_spec import BoxSpec, HandleSpec, MeshColliderSpec, WindSpec
+from .world_spec import BoxSpec, HandleSpec, MeshColliderSpec, WindSpec, with_animation
 from .mesh_spec import MeshClothSpec, MeshTransform, is_mesh_cloth, parse_mesh_cloth
 from .scene_limits import (DENSITY_MAX, DENSITY_MIN, DEPTH_MAX, FPS_MAX, FPS_MIN, GRAVITY_MAX, KS_MAX, LENGTH_MAX,
                            LENGTH_MIN, POINTS_MAX, SEED_MAX, STEPS_MAX)
@@ -26,6 +26,8 @@ from .scene_reader import Vec3
 from .scene_reader import as_list as _as_list
 from .scene_reader import describe as _describe
 from .scene_reader import too_deep as _too_deep
+from .world_reader import (optional_animation, parse_boxes, parse_grid_handles, parse_mesh_colliders,
+                           parse_wind)
 
 __all__ = ["ClothSpec", "MeshClothSpec", "MeshTransform", "PlaneSpec", "Scene", "SimulationSpec", "SphereSpec",
            "apply_overrides", "load_scene", "parse_scene", "read_scene_json"]
@@ -114,9 +116,17 @@ class Scene:
         cloths = [_cloth_dict(c) for c in self.cloths]
         out: dict[str, Any] = {"cloth": cloths[0] if len(cloths) == 1 else cloths}
         if self.spheres:
-            out["sphere"] = [asdict(s) for s in self.spheres]
+            out["sphere"] = [with_animation({"origin": list(s.origin), "radius": s.radius,
+                                              "friction": s.friction}, s.animation) for s in self.spheres]
         if self.planes:
-            out["plane"] = [asdict(p) for p in self.planes]
+            out["plane"] = [with_animation({"point": list(p.point), "normal": list(p.normal),
+                                             "friction": p.friction}, p.animation) for p in self.planes]
+        if self.boxes:
+            out["box"] = [b.to_dict() for b in self.boxes]
+        if self.mesh_colliders:
+            out["mesh"] = [m.to_dict() for m in self.mesh_colliders]
+        if self.wind is not None:
+            out["wind"] = self.wind.to_dict()
         out["simulation"] = asdict(self.simulation)
         return json.loads(json.dumps(out))
 
@@ -126,13 +136,16 @@ def _cloth_dict(spec: ClothSpec | MeshClothSpec) -> dict[str, Any]:
         return spec.to_dict()
     cloth = asdict(spec)
     cloth["pinned"] = [list(p) for p in spec.pinned]
+    del cloth["handles"]
+    if spec.handles:
+        cloth["handles"] = [h.to_dict() for h in spec.handles]
     return cloth
 
 
 _CLOTH_REQUIRED = ("width", "height", "num_width_points", "num_height_points", "thickness", "orientation")
 _CLOTH_KEYS = set(_CLOTH_REQUIRED) | {"pinned", "damping", "density", "ks", "enable_structural",
-                                     "enable_shearing", "enable_bending"}
-_TOP_KEYS = {"cloth", "sphere", "plane", "simulation"}
+                                     "enable_shearing", "enable_bending", "handles"}
+_TOP_KEYS = {"cloth", "sphere", "plane", "simulation", "box", "mesh", "wind"}
 
 
 def _parse_cloths(r: _Reader, raw: Any) -> list[ClothSpec | MeshClothSpec]:
@@ -184,6 +197,7 @@ def _parse_cloth(r: _Reader, raw: Any, key: str = "cloth") -> ClothSpec:
         enable_structural=r.boolean(c.get("enable_structural", True), f"{key}.enable_structural"),
         enable_shearing=r.boolean(c.get("enable_shearing", True), f"{key}.enable_shearing"),
         enable_bending=r.boolean(c.get("enable_bending", True), f"{key}.enable_bending"),
+        handles=parse_grid_handles(r, c["handles"], f"{key}.handles", nw, nh, pinned) if "handles" in c else [],
     )
 
 
@@ -192,11 +206,13 @@ def _parse_spheres(r: _Reader, raw: Any) -> list[SphereSpec]:
     for suffix, item in _as_list(raw):
         key = "sphere" + suffix
         s = r.obj(item, key)
-        r.keys(s, key, {"origin", "radius", "friction"}, ("origin", "radius", "friction"), lenient=True)
+        r.keys(s, key, {"origin", "radius", "friction", "animation"}, ("origin", "radius", "friction"),
+               lenient=True)
         out.append(SphereSpec(
             origin=r.vec3(s["origin"], key + ".origin", LENGTH_MAX),
             radius=r.number(s["radius"], key + ".radius", lo=LENGTH_MIN, hi=LENGTH_MAX),
             friction=r.number(s["friction"], key + ".friction", lo=0, hi=1),
+            animation=optional_animation(r, s, key),
         ))
     return out
 
@@ -206,11 +222,13 @@ def _parse_planes(r: _Reader, raw: Any) -> list[PlaneSpec]:
     for suffix, item in _as_list(raw):
         key = "plane" + suffix
         p = r.obj(item, key)
-        r.keys(p, key, {"point", "normal", "friction"}, ("point", "normal", "friction"), lenient=True)
+        r.keys(p, key, {"point", "normal", "friction", "animation"}, ("point", "normal", "friction"),
+               lenient=True)
         out.append(PlaneSpec(
             point=r.vec3(p["point"], key + ".point", LENGTH_MAX),
             normal=_unit(r, r.vec3(p["normal"], key + ".normal"), key + ".normal"),
             friction=r.number(p["friction"], key + ".friction", lo=0, hi=1),
+            animation=optional_animation(r, p, key),
         ))
     return out
 
@@ -263,6 +281,9 @@ def parse_scene(data: Any, source: str | None = None, strict: bool = False) -> S
         spheres=_parse_spheres(r, data["sphere"]) if "sphere" in data else [],
         planes=_parse_planes(r, data["plane"]) if "plane" in data else [],
         simulation=_parse_simulation(r, data.get("simulation", {})),
+        boxes=parse_boxes(r, data["box"]) if "box" in data else [],
+        mesh_colliders=parse_mesh_colliders(r, data["mesh"]) if "mesh" in data else [],
+        wind=parse_wind(r, data["wind"]) if "wind" in data else None,
         source=source,
     )
 
@@ -370,7 +391,7 @@ def apply_overrides(data: Any, overrides: list[str] | tuple[str, ...], source: s
     return data
 
 
-_COLLIDER_KEYS = ("cloth", "sphere", "plane")
+_COLLIDER_KEYS = ("cloth", "sphere", "plane", "box", "mesh")
 """the top-level keys that hold one object or a list of them"""
 
 

@@ -33,3 +33,15 @@ SCALE_MAX = 1e6
 """largest scale factor of a mesh cloth's transform"""
 FILE_COORD_MAX = 1e12
 """largest coordinate in a mesh file, before the transform (any unit that scales to metres)"""
+ANGLE_MAX = 1e6
+"""largest rotation angle of a box or an animation key, in either direction [degrees]"""
+TIME_MAX = 1e9
+"""latest time of an animation key [s]"""
+MARGIN_MAX = 1.0
+"""largest collision margin of a box or a mesh collider [m]"""
+TRIANGLES_MAX = 4_000_000
+"""most triangles of a mesh collider (quads and polygons split)"""
+SPEED_MAX = 1e6
+"""largest wind velocity component, in either direction [m/s]"""
+COEFFICIENT_MAX = 1e3
+"""largest wind drag coefficient, and lift coefficient in either direction"""

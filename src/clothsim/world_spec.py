@@ -4,11 +4,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from .mesh_spec import MeshTransform
 from .motion import Animation, Vec3
+
+if TYPE_CHECKING:  # numpy loads with a scene's meshes, not with the command line's --help
+    import numpy as np
 
 MARGIN_DEFAULT = 0.001
 """how far off a box's or a mesh's surface a colliding point is put back [m]"""
@@ -27,6 +29,12 @@ class BoxSpec:
     """degrees about x, then y, then z (as a mesh's transform)"""
     margin: float = MARGIN_DEFAULT
     animation: Animation | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scene keys of this box (what the scene reader reads back)."""
+        out = {"center": list(self.center), "size": list(self.size), "rotate": list(self.rotate),
+               "friction": self.friction, "margin": self.margin}
+        return with_animation(out, self.animation)
 
 
 @dataclass
@@ -53,6 +61,13 @@ class MeshColliderSpec:
         """the middle of the bounding box after the transform [m], (3,): what an animation turns about"""
         return (self.vertices.min(axis=0) + self.vertices.max(axis=0)) / 2.0
 
+    def to_dict(self) -> dict[str, Any]:
+        """The scene keys of this collider; ``path`` as the scene wrote it, so the dict
+        reads back with the same scene source."""
+        out = {"path": self.path, "transform": self.transform.to_dict(), "friction": self.friction,
+               "margin": self.margin}
+        return with_animation(out, self.animation)
+
 
 @dataclass
 class HandleSpec:
@@ -63,6 +78,11 @@ class HandleSpec:
     """grid indices ``(i, j)`` (a grid cloth)"""
     vertices: list[int] = field(default_factory=list)
     """file vertex indices (a mesh cloth)"""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scene keys of this handle: ``points`` (a grid cloth's) or ``vertices``."""
+        members = {"points": [list(p) for p in self.points]} if self.points else {"vertices": list(self.vertices)}
+        return {**members, "animation": self.animation.to_dict()}
 
 
 @dataclass
@@ -79,3 +99,15 @@ class WindSpec:
     """lift coefficient"""
     seed: int = 0
     """seeds the gusts"""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scene keys of the wind."""
+        return {"velocity": list(self.velocity), "turbulence": self.turbulence, "drag": self.drag,
+                "lift": self.lift, "seed": self.seed}
+
+
+def with_animation(out: dict[str, Any], animation: Animation | None) -> dict[str, Any]:
+    """``out`` with the key ``animation`` where there is one (never ``null``)"""
+    if animation is not None:
+        out["animation"] = animation.to_dict()
+    return out
