@@ -80,6 +80,8 @@ def slot_poses(animation: Animation | None, pivot, t0: float, dt: float, substep
     float64 (T, 3, 3) and (T, 3), where slot s holds the pose at the end of substep s
     (time ``t0 + (s+1) dt``) and at its start. T is ``substeps`` for a moving
     animation and 1 for none or a still one (the rest pose, or the still offset)."""
+    import numpy as np
+
     if animation is None:
         R, o = np.eye(3)[None], np.zeros((1, 3))
         return R, o, R, o
