@@ -71,3 +71,14 @@ def pin_handles(model: Model, handles: list[Handle]) -> Model:
         pinned[h.points] = True
     pinned.setflags(write=False)
     return dataclasses.replace(model, pinned=pinned)
+
+
+def pose_at(animation: Animation | None, pivot, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """A collider's or handle's rigid pose at time ``t`` [s]: (R (3, 3), o (3,)),
+    ``x_now = R @ x_rest + o``; the identity for no animation. The pivot of each
+    kind: a sphere's ``origin``, a plane's ``point``, a box's ``center``, a mesh
+    collider's ``pivot``."""
+    if animation is None:
+        return np.eye(3), np.zeros(3)
+    R, o = animation.rigid([t], pivot)
+    return R[0], o[0]
