@@ -60,9 +60,10 @@ def _world(row, u, v, w):
 @njit(cache=True, inline="always")
 def _resolve(q0, q1, half, margin, keep, out):
     """Whether a point that went from ``q0`` to ``q1`` (box frame, (3,) each) hit the
-    box, and if so where it ends, in ``out``: at the face its segment entered, ``margin`` outside it, moved back toward
-    q0 by ``keep`` (1 - friction); a point that was inside already goes to the
-    nearest face, margin outside, with no friction."""
+    box, and if so where it ends, in ``out``: ``q1`` put on the face its segment
+    entered, ``margin`` outside it (or as far as q0 was, if nearer), then moved back toward q0 by ``keep``
+    (1 - friction); a point that was inside already goes to the nearest face,
+    margin outside, with no friction."""
     outside0 = False
     for c in range(3):
         if abs(q0[c]) >= half[c]:
@@ -83,9 +84,15 @@ def _resolve(q0, q1, half, margin, keep, out):
             t_out = min(t_out, hi)
         if axis < 0 or t_in > t_out or not t_in <= 1.0:
             return False
+        # the face the segment met decides where the point goes: the current
+        # position put on that face, as the plane does, so that the friction
+        # alone (not the segment) takes the tangential motion away
+        # ... and ``margin`` off it, or as far off as it came from if that was
+        # nearer: a point resting within the margin must not bounce off it
         for c in range(3):
-            out[c] = q0[c] + t_in * (q1[c] - q0[c])
-        out[axis] = (1.0 if q0[axis] > 0.0 else -1.0) * (half[axis] + margin)
+            out[c] = q1[c]
+        off = min(margin, abs(q0[axis]) - half[axis])
+        out[axis] = (1.0 if q0[axis] > 0.0 else -1.0) * (half[axis] + off)
         for c in range(3):
             out[c] = q0[c] + keep * (out[c] - q0[c])
         return True

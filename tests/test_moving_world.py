@@ -1,0 +1,234 @@
+"""The moving world: boxes, keyframed colliders, handles and wind, each a physical
+fact checked on the solver's paths (the grid's stencils, threads, the general
+spring lists), as test_physics.py does for the course model."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from clothsim import Simulation
+from clothsim.motion import rotation_matrices
+from clothsim.scene import parse_scene
+from clothsim.solver.wind import AIR_DENSITY
+
+from .conftest import SMALL_CLOTH
+
+PATHS = [(1, "auto"), (2, "auto"), (1, "mesh")]
+"""(threads, solver path): serial, cut in two, the general path"""
+
+
+@pytest.fixture(params=PATHS, ids=["serial", "threads2", "mesh"])
+def path(request):
+    return request.param
+
+
+def sim_of(path, scene: dict) -> Simulation:
+    threads, solver = path
+    return Simulation(parse_scene(scene, "moving"), threads=threads, solver_path=solver)
+
+
+def free_cloth(**keys) -> dict:
+    """the 16x16 cloth of conftest, unpinned unless told"""
+    cloth = copy.deepcopy(SMALL_CLOTH)
+    cloth["pinned"] = []
+    cloth.update(keys)
+    return cloth
+
+
+def inside_box(points: np.ndarray, center, size, rotate=(0, 0, 0)) -> np.ndarray:
+    """bool (N,): strictly inside the oriented box, by the exact geometry"""
+    local = (points - np.asarray(center)) @ rotation_matrices(rotate)
+    return np.all(np.abs(local) < np.asarray(size) / 2, axis=1)
+
+
+# ----------------------------------------------------------------------------- boxes
+
+
+def test_a_cloth_dropped_on_a_box_rests_on_it_and_never_enters(path):
+    """every frame of a 1.5 s drop, no point strictly inside the box; the cloth ends
+    lying on its top: its middle within 1.5 cm above the top face (friction stops a
+    falling point short of the margin; the edges' bending tents the middle a little)"""
+    box = {"center": [0.5, 0.5, 0.5], "size": [0.6, 0.2, 0.6], "rotate": [0, 20, 0], "friction": 0.5}
+    sim = sim_of(path, {"cloth": free_cloth(), "box": box})
+    for _ in range(135):
+        sim.step()
+        assert not inside_box(sim.positions, box["center"], box["size"], box["rotate"]).any()
+    local = (sim.positions - box["center"]) @ rotation_matrices(box["rotate"])
+    middle = np.all(np.abs(local[:, [0, 2]]) < 0.15, axis=1)
+    assert middle.sum() > 10
+    above = local[middle, 1] - 0.1
+    assert above.min() > 0.0 and above.max() < 0.015, (above.min(), above.max())
+
+
+@pytest.mark.parametrize("steps,gravity", [(1, -9.8), (1, -200.0), (3, -200.0)])
+def test_fast_points_do_not_pass_through_a_thin_box(path, steps, gravity):
+    """at one substep a frame and high gravity a point moves many times the board's
+    2 mm thickness in one substep: the segment test still stops it on top"""
+    box = {"center": [0.5, 0.6, 0.5], "size": [2.0, 0.002, 2.0], "friction": 0.0}
+    scene = {"cloth": free_cloth(), "box": box,
+             "simulation": {"simulation_steps": steps, "gravity": [0, gravity, 0], "self_collision": False}}
+    sim = sim_of(path, scene)
+    fastest = 0.0
+    for _ in range(60):
+        before = sim.positions.copy()
+        sim.step()
+        fastest = max(fastest, np.abs(sim.positions - before).max())
+        assert (sim.positions[:, 1] > 0.601 - 1e-9).all()
+    if gravity < -100:
+        assert fastest > 0.05  # the test meant what it says: points moved 25x the thickness
+
+
+def test_a_point_inside_a_box_at_the_start_is_pushed_out(path):
+    """a cloth that starts inside a box (the scene put it there) leaves it at the nearest face"""
+    box = {"center": [0.5, 1.0, 0.5], "size": [0.3, 0.1, 0.3], "friction": 0.0}
+    sim = sim_of(path, {"cloth": free_cloth(), "box": box, "simulation": {"gravity": [0, 0, 0]}})
+    assert inside_box(sim.positions, box["center"], box["size"]).any()
+    sim.step()
+    assert not inside_box(sim.positions, box["center"], box["size"]).any()
+
+
+# ----------------------------------------------------------------------------- motion
+
+
+def test_a_spinning_sphere_turns_the_cloth_on_it_by_friction(path):
+    """a sphere spinning once in 4 s about y with friction 1: after 4 s the cloth lying
+    on it has turned, about the axis, by at least half the sphere's turn"""
+    scene = {"cloth": free_cloth(num_width_points=20, num_height_points=20),
+             "sphere": {"origin": [0.5, 0.5, 0.5], "radius": 0.3, "friction": 1.0,
+                        "animation": {"keys": [{"t": 0}, {"t": 4, "rotate": [0, 360, 0]}], "loop": True}}}
+    sim = sim_of(path, scene)
+    angle = lambda p: np.arctan2(p[:, 2] - 0.5, p[:, 0] - 0.5)  # noqa: E731
+    radius = np.hypot(sim.positions[:, 0] - 0.5, sim.positions[:, 2] - 0.5)
+    last, turned = angle(sim.positions), np.zeros(sim.model.num_points)
+    for _ in range(360):
+        sim.step()
+        now = angle(sim.positions)
+        turned += np.angle(np.exp(1j * (now - last)))
+        last = now
+    # a positive turn about y takes +x toward -z: the angle from +x toward +z falls
+    sphere_turn = -2 * np.pi
+    mean = turned[radius > 0.1].mean()
+    assert mean / sphere_turn >= 0.5, np.degrees(mean)
+
+
+def test_a_still_sphere_does_not_turn_the_cloth(path):
+    """the same cloth on the same sphere, unmoving: no turn (so the turn above is the sphere's)"""
+    scene = {"cloth": free_cloth(num_width_points=20, num_height_points=20),
+             "sphere": {"origin": [0.5, 0.5, 0.5], "radius": 0.3, "friction": 1.0}}
+    sim = sim_of(path, scene)
+    a0 = np.arctan2(sim.positions[:, 2] - 0.5, sim.positions[:, 0] - 0.5)
+    sim.run(2.0)
+    a1 = np.arctan2(sim.positions[:, 2] - 0.5, sim.positions[:, 0] - 0.5)
+    assert abs(np.degrees(np.angle(np.exp(1j * (a1 - a0))).mean())) < 1.0
+
+
+def test_a_sliding_box_carries_the_cloth_on_it_and_a_frictionless_one_does_not(path):
+    """a table (wider than the cloth, no edge touches it) moving 0.3 m along x in 1 s
+    after the cloth settled: with friction 1 the cloth moves with it (its mean x
+    follows to within 3 cm), with friction 0 it stays"""
+    def run(friction):
+        keys = [{"t": 0.8}, {"t": 1.8, "translate": [0.3, 0, 0]}]
+        box = {"center": [0.5, 0.5, 0.5], "size": [2.0, 0.2, 2.0], "friction": friction,
+               "animation": {"keys": keys}}
+        sim = sim_of(path, {"cloth": free_cloth(), "box": box})
+        sim.run(0.8)
+        x0 = sim.positions[:, 0].mean()
+        sim.run(1.2)
+        return sim.positions[:, 0].mean() - x0
+
+    assert abs(run(1.0) - 0.3) < 0.03
+    assert abs(run(0.0)) < 0.03
+
+
+def test_a_moving_plane_lifts_the_cloth(path):
+    """a floor rising 0.2 m under a cloth resting on it pushes it up with it"""
+    plane = {"point": [0, 0.5, 0], "normal": [0, 1, 0], "friction": 0.5,
+             "animation": {"keys": [{"t": 0.5}, {"t": 1.5, "translate": [0, 0.2, 0]}]}}
+    sim = sim_of(path, {"cloth": free_cloth(), "plane": plane})
+    sim.run(2.0)
+    assert (sim.positions[:, 1] > 0.7).all() and sim.positions[:, 1].max() < 0.72
+
+
+def test_handles_follow_their_animation_exactly(path):
+    """a handle's points are where the animation carries their start positions, every frame;
+    rotation about the handle's centroid"""
+    keys = [{"t": 0}, {"t": 1, "translate": [0.2, -0.1, 0.0], "rotate": [0, 90, 0]}]
+    cloth = free_cloth(handles=[{"points": [[0, 0], [15, 0]], "animation": {"keys": keys}}])
+    sim = sim_of(path, {"cloth": cloth})
+    idx = np.array([0, 15])
+    start = sim.positions[idx].copy()
+    pivot = start.mean(axis=0)
+    assert sim.model.pinned[idx].all()
+    for frame in range(1, 120):
+        sim.step()
+        t = min(sim.time, 1.0)
+        R = rotation_matrices([0, 90 * t, 0])
+        want = (start - pivot) @ R.T + pivot + np.array([0.2, -0.1, 0.0]) * t
+        np.testing.assert_allclose(sim.positions[idx], want, atol=1e-12)
+
+
+def test_a_curtain_opens_when_its_handles_slide_apart(path):
+    """a vertical cloth held by two handles at its top corners that slide apart by
+    0.2 m each: the top row spreads, the cloth stays whole (no spring past 110%)"""
+    cloth = free_cloth(orientation=1, handles=[
+        {"points": [[0, 15]], "animation": {"keys": [{"t": 0}, {"t": 1, "translate": [-0.2, 0, 0]}]}},
+        {"points": [[15, 15]], "animation": {"keys": [{"t": 0}, {"t": 1, "translate": [0.2, 0, 0]}]}}])
+    sim = sim_of(path, {"cloth": cloth})
+    sim.run(1.5)
+    top = sim.positions[15 * 16:16 * 16]
+    assert top[:, 0].max() - top[:, 0].min() == pytest.approx(1.4, abs=1e-9)
+
+
+# ----------------------------------------------------------------------------- wind
+
+
+def flag(wind: dict | None) -> dict:
+    cloth = {"width": 1.0, "height": 0.6, "num_width_points": 25, "num_height_points": 15, "thickness": 0.01,
+             "orientation": 1, "pinned": [[0, j] for j in range(15)]}
+    scene = {"cloth": cloth}
+    if wind is not None:
+        scene["wind"] = wind
+    return scene
+
+
+def test_a_flag_in_a_5_m_s_wind_streams_downwind_and_hangs_still_without_it(path):
+    """pinned along one edge to a pole: with the wind at 0 it hangs still (as a flag
+    with no wind, and moving less than a millimetre a frame); turned to 5 m/s
+    (lift 0.5) live through the API, the mean offset of its points along the wind
+    is at least half its length"""
+    sim = sim_of(path, flag({"velocity": [0.0, 0, 0], "lift": 0.5}))
+    calm = sim_of(path, flag(None))
+    sim.run(3.0)
+    calm.run(3.0)
+    assert sim.positions[:, 0].mean() < 0.1
+    assert abs(sim.positions[:, 0].mean() - calm.positions[:, 0].mean()) < 0.02
+    before = sim.positions.copy()
+    sim.step()
+    assert np.abs(sim.positions - before).max() < 1e-3
+    sim.wind.velocity = (5.0, 0.0, 0.0)
+    sim.run(3.0)
+    assert sim.positions[:, 0].mean() >= 0.5
+
+
+def test_wind_drag_on_a_triangle_is_half_rho_cd_area_u_squared():
+    """a lone free triangle facing a 4 m/s wind: each corner moves dt² F / (3 m) more than
+    under gravity alone, with F = ½ ρ C_d A u² along the wind"""
+    from clothsim.solver.groups import Points
+    from clothsim.solver.wind import blow, pack_wind
+    from clothsim.world_spec import WindSpec
+
+    P = np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).T.copy()  # in the x = 0 plane
+    L = P.copy()
+    dt, m, drag = 1e-3, 0.02, 1.5
+    wind = pack_wind(WindSpec(velocity=(4.0, 0.0, 0.0), drag=drag), 0.0, dt)
+    W = np.zeros((3, 3))
+    tris = np.array([[0, 1, 2]], dtype=np.int32)
+
+    points = Points(rest=P.T.copy(), free=np.ones(3), thickness=0.01, center=np.zeros(3), span=10.0, triangles=tris)
+    blow(P, L, points, np.full(3, 1 / m), dt * dt, wind, W, 0)
+    force = 0.5 * AIR_DENSITY * drag * 0.5 * 16.0
+    np.testing.assert_allclose(P[0] - L[0], dt * dt * force / 3 / m, rtol=1e-12)
+    np.testing.assert_array_equal(P[1:], L[1:])
