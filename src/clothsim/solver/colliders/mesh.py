@@ -77,17 +77,16 @@ def pose_rows(R_now, o_now, R_before, o_before, friction, margin) -> np.ndarray:
 
 # --- one triangle ------------------------------------------------------------------
 
-@njit(**EXACT_OPTIONS)
+@njit(**EXACT_OPTIONS, inline="always")
 def _hit(tris, t, q, d, tol, entry_only):
     """Where the segment q -> q + d crosses triangle ``t`` (Moller-Trumbore):
     (parameter s in [0, 1], or inf for none; the smallest barycentric coordinate;
     whether the segment enters, moving against the normal (b-a) x (c-a)). Barycentric
     bounds widened by ``tol``; a zero-area triangle, a segment in its plane or a
     non-entering crossing when ``entry_only`` is none."""
-    r = tris[t]
-    ax, ay, az = r[0], r[1], r[2]
-    e1x, e1y, e1z = r[3] - ax, r[4] - ay, r[5] - az
-    e2x, e2y, e2z = r[6] - ax, r[7] - ay, r[8] - az
+    ax, ay, az = tris[t, 0], tris[t, 1], tris[t, 2]
+    e1x, e1y, e1z = tris[t, 3] - ax, tris[t, 4] - ay, tris[t, 5] - az
+    e2x, e2y, e2z = tris[t, 6] - ax, tris[t, 7] - ay, tris[t, 8] - az
     dx, dy, dz = d
     px = dy * e2z - dz * e2y
     py = dz * e2x - dx * e2z
@@ -115,9 +114,8 @@ def _hit(tris, t, q, d, tol, entry_only):
 @njit(**EXACT_OPTIONS)
 def _unit_normal(tris, t):
     """The unit normal (b-a) x (c-a) / |...| of triangle ``t`` (a crossed one: not zero-area)."""
-    r = tris[t]
-    e1x, e1y, e1z = r[3] - r[0], r[4] - r[1], r[5] - r[2]
-    e2x, e2y, e2z = r[6] - r[0], r[7] - r[1], r[8] - r[2]
+    e1x, e1y, e1z = tris[t, 3] - tris[t, 0], tris[t, 4] - tris[t, 1], tris[t, 5] - tris[t, 2]
+    e2x, e2y, e2z = tris[t, 6] - tris[t, 0], tris[t, 7] - tris[t, 1], tris[t, 8] - tris[t, 2]
     nx = e1y * e2z - e1z * e2y
     ny = e1z * e2x - e1x * e2z
     nz = e1x * e2y - e1y * e2x
@@ -129,29 +127,28 @@ def _unit_normal(tris, t):
 def _closest(tris, t, p):
     """The point of triangle ``t`` nearest to p (by the Voronoi regions of its corners
     and edges); NaN for a zero-area triangle, which then never wins."""
-    r = tris[t]
-    ax, ay, az = r[0], r[1], r[2]
-    abx, aby, abz = r[3] - ax, r[4] - ay, r[5] - az
-    acx, acy, acz = r[6] - ax, r[7] - ay, r[8] - az
+    ax, ay, az = tris[t, 0], tris[t, 1], tris[t, 2]
+    abx, aby, abz = tris[t, 3] - ax, tris[t, 4] - ay, tris[t, 5] - az
+    acx, acy, acz = tris[t, 6] - ax, tris[t, 7] - ay, tris[t, 8] - az
     apx, apy, apz = p[0] - ax, p[1] - ay, p[2] - az
     d1 = abx * apx + aby * apy + abz * apz
     d2 = acx * apx + acy * apy + acz * apz
     if d1 <= 0.0 and d2 <= 0.0:
         return ax, ay, az
-    bpx, bpy, bpz = p[0] - r[3], p[1] - r[4], p[2] - r[5]
+    bpx, bpy, bpz = p[0] - tris[t, 3], p[1] - tris[t, 4], p[2] - tris[t, 5]
     d3 = abx * bpx + aby * bpy + abz * bpz
     d4 = acx * bpx + acy * bpy + acz * bpz
     if d3 >= 0.0 and d4 <= d3:
-        return r[3], r[4], r[5]
+        return tris[t, 3], tris[t, 4], tris[t, 5]
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         w = d1 / (d1 - d3)
         return ax + w * abx, ay + w * aby, az + w * abz
-    cpx, cpy, cpz = p[0] - r[6], p[1] - r[7], p[2] - r[8]
+    cpx, cpy, cpz = p[0] - tris[t, 6], p[1] - tris[t, 7], p[2] - tris[t, 8]
     d5 = abx * cpx + aby * cpy + abz * cpz
     d6 = acx * cpx + acy * cpy + acz * cpz
     if d6 >= 0.0 and d5 <= d6:
-        return r[6], r[7], r[8]
+        return tris[t, 6], tris[t, 7], tris[t, 8]
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         w = d2 / (d2 - d6)
@@ -159,7 +156,7 @@ def _closest(tris, t, p):
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return r[3] + w * (r[6] - r[3]), r[4] + w * (r[7] - r[4]), r[5] + w * (r[8] - r[5])
+        return tris[t, 3] + w * (tris[t, 6] - tris[t, 3]), tris[t, 4] + w * (tris[t, 7] - tris[t, 4]), tris[t, 5] + w * (tris[t, 8] - tris[t, 5])
     den = 1.0 / (va + vb + vc)
     v, w = vb * den, vc * den
     return ax + v * abx + w * acx, ay + v * aby + w * acy, az + v * abz + w * acz
@@ -340,6 +337,16 @@ def _finite3(q):
     return np.isfinite(q[0]) and np.isfinite(q[1]) and np.isfinite(q[2])
 
 
+@njit(**EXACT_OPTIONS, inline="always")
+def _misses_box(g, q0, q1, reach):
+    """Whether the box of the segment q0 -> q1, grown by ``reach`` [m], misses the mesh's
+    box: the cheap test the kernels make before any search (a call that takes the
+    arrays costs more than the test)."""
+    return (max(q0[0], q1[0]) + reach < g[G_ORIGIN] or min(q0[0], q1[0]) - reach > g[G_HI]
+            or max(q0[1], q1[1]) + reach < g[G_ORIGIN + 1] or min(q0[1], q1[1]) - reach > g[G_HI + 1]
+            or max(q0[2], q1[2]) + reach < g[G_ORIGIN + 2] or min(q0[2], q1[2]) - reach > g[G_HI + 2])
+
+
 @njit(**EXACT_OPTIONS)
 def _pose(meshes, grid, s, k):
     """The pose row of mesh k for substep slot s, or an empty one when it is not finite
@@ -387,7 +394,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
                 continue
             q0 = _to_rest(m, 12, L[0, p], L[1, p], L[2, p])
             q1 = _to_rest(m, 0, P[0, p], P[1, p], P[2, p])
-            if not (_finite3(q0) and _finite3(q1)):
+            if not (_finite3(q0) and _finite3(q1)) or _misses_box(g, q0, q1, margin):
                 continue
             best, t, _ = _first_crossing(tris, g, cells, items, q0, q1, margin, closed)
             moved = t >= 0
@@ -438,7 +445,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
                 continue
             q0 = _to_rest(m, 0, Q[0, p], Q[1, p], Q[2, p])
             q1 = _to_rest(m, 0, P[0, p], P[1, p], P[2, p])
-            if not (_finite3(q0) and _finite3(q1)):
+            if not (_finite3(q0) and _finite3(q1)) or _misses_box(g, q0, q1, margin):
                 continue
             best, t, _ = _first_crossing(tris, g, cells, items, q0, q1, margin, closed)
             if t < 0:
