@@ -281,3 +281,64 @@ def test_grab_a_point_of_the_second_cloth(two_app):
     assert np.linalg.norm(now[0] - np.array(target_px)) < 2.0
     assert np.linalg.norm(app.sim.positions[grabbed] - start) > 0.02
     app._on_release(0, 0, app.wnd.mouse.left)
+
+
+# ------------------------------------------------------------------ the moving world and the wind
+
+
+@pytest.fixture(scope="module")
+def world_app(display):
+    from clothsim.scene import parse_scene
+    from clothsim.viewer.app import ViewerApp
+
+    from .conftest import small_scene
+
+    slide = {"keys": [{"t": 0}, {"t": 1, "translate": [0.4, 0, 0]}]}
+    scene = small_scene(box={"center": [0.3, 0.2, 0.5], "size": [0.3, 0.1, 0.3], "friction": 0.5,
+                             "animation": slide})
+    a = ViewerApp(Simulation(parse_scene(scene, "world")), size=(1000, 720))  # the scene right of the panel
+    yield a
+    a.close()
+
+
+def test_panel_wind_section_edits_sim_wind(world_app):
+    """no wind: an "add wind" button that adds a 2 m/s breeze along +x; then
+    sliders that edit sim.wind live, and a friction slider for the box"""
+    from clothsim.world_spec import WindSpec
+
+    app = world_app
+    frames(app, 1)
+    assert app.sim.wind is None and "wind/turbulence" not in app.panel_items
+    assert "box0/friction" in app.panel_items
+    _click(app, app.panel_items["wind/add"])
+    assert app.sim.wind == WindSpec(velocity=(2.0, 0.0, 0.0))
+    items = app.panel_items
+    assert {"wind/velocity", "wind/turbulence", "wind/drag", "wind/lift"} <= set(items)
+    assert "wind/add" not in items
+    _click(app, items["wind/turbulence"])
+    _click(app, items["wind/lift"])
+    wind = app.sim.wind
+    assert 0.0 < wind.turbulence <= 1.0 and 0.0 < wind.lift <= 5.0 and wind.drag == 1.0
+    _click(app, items["box0/friction"])
+    assert app.sim.boxes[0].friction != 0.5
+    app.sim.wind = None
+    app.press("p")
+
+
+def test_viewer_draws_the_box_where_it_is_now(world_app, tmp_path):
+    """the box is drawn at its pose at sim.time: 0.4 m further along +x at t = 1 s"""
+    app = world_app
+    if not app.paused:
+        app.press("p")
+    app.sim.state.positions[:] += [100.0, 0.0, 0.0]  # the cloth out of view: every drawn pixel is the box's
+    centres = []
+    for t in (0.0, 1.0):
+        app.sim.state.time = t
+        frames(app, 1)
+        img = np.asarray(Image.open(app.save_screenshot(tmp_path / f"t{t}.png"))).astype(int)[:, 400:]
+        box = (np.abs(img - np.array(app.settings.background) * 255).sum(axis=2) > 20) & \
+              (img.max(axis=2) - img.min(axis=2) < 25)
+        assert box.sum() > 200
+        centres.append(np.nonzero(box)[1].mean())
+    assert centres[1] > centres[0] + 10
+    app.press("r")

@@ -92,6 +92,78 @@ def plane_mesh(point, normal, center, size: float, divisions: int = 32) -> Mesh:
     return Mesh(pack_vertices(pos, np.tile(n, (count, 1)), np.tile(t, (count, 1)), uv), tris)
 
 
+# a box's faces: the axis of the outward normal, its sign, and two in-face axes
+# (a, b) with a x b along the normal, so each face winds counter-clockwise seen
+# from outside
+_BOX_FACES = ((0, 1, 1, 2), (0, -1, 2, 1), (1, 1, 2, 0), (1, -1, 0, 2), (2, 1, 0, 1), (2, -1, 1, 0))
+
+
+def box_mesh(center, size, rotation=None) -> Mesh:
+    """An oriented box: 6 faces of 4 vertices each (24, flat normals, uvs 0..1 per
+    face) and 12 triangles; ``size``: full lengths along its own axes [m];
+    ``rotation``: (3, 3) turning its axes (None: axis-aligned). Its lines are
+    the 12 edges (each face's outline), not the faces' diagonals."""
+    R = np.eye(3) if rotation is None else np.asarray(rotation, float)
+    half = 0.5 * np.asarray(size, float)
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    pos, normals, tangents, uvs = [], [], [], []
+    for axis, sign, a, b in _BOX_FACES:
+        local = np.zeros((4, 3))
+        local[:, axis] = sign * half[axis]
+        local[:, a] = (2.0 * corners[:, 0] - 1.0) * half[a]
+        local[:, b] = (2.0 * corners[:, 1] - 1.0) * half[b]
+        n, t = np.zeros(3), np.zeros(3)
+        n[axis], t[a] = sign, 1.0
+        pos.append(local)
+        normals.append(np.tile(n, (4, 1)))
+        tangents.append(np.tile(t, (4, 1)))
+        uvs.append(corners)
+    pos = np.concatenate(pos) @ R.T + np.asarray(center, float)
+    normals, tangents = np.concatenate(normals) @ R.T, np.concatenate(tangents) @ R.T
+    quad = np.arange(0, 24, 4)[:, None]
+    tris = np.concatenate([quad + [0, 1, 2], quad + [0, 2, 3]]).astype(np.int32)
+    lines = np.concatenate([quad + [0, 1], quad + [1, 2], quad + [2, 3], quad + [3, 0]]).astype(np.int32)
+    return Mesh(pack_vertices(pos, normals, tangents, np.concatenate(uvs)), tris, lines)
+
+
+SMOOTH_ANGLE = 40.0
+"""[degrees] a mesh collider's corner takes the smooth (vertex) normal where it is
+within this of its face's normal, else the face's own (a crease)"""
+
+
+def triangle_mesh(vertices, triangles, smooth_angle: float = SMOOTH_ANGLE) -> Mesh:
+    """A triangle mesh to draw (a mesh collider): ``vertices`` [m] (V, 3),
+    ``triangles`` (F, 3) indices. Every triangle gets its own three vertices
+    (3F), normal and tangent: smooth where the surface bends less than
+    ``smooth_angle`` (the area-weighted vertex normal), flat at creases, so a
+    torus looks round and a cube keeps its edges. Uvs are the positions on the
+    two widest sides of the bounding box, 0..1 across it; the tangent is u's
+    direction made normal to the normal (any normal direction where u is along it)."""
+    from ..mesh import compute_normals
+
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    tri = np.ascontiguousarray(triangles, dtype=np.int64).reshape(-1, 3)
+    corners = v[tri]                                              # (F, 3, 3)
+    face = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    face /= np.maximum(np.linalg.norm(face, axis=1, keepdims=True), 1e-300)
+    smooth = compute_normals(v, tri)[tri]                         # (F, 3, 3)
+    keep = np.einsum("fk,fck->fc", face, smooth) >= math.cos(math.radians(smooth_angle))
+    normals = np.where(keep[..., None], smooth, face[:, None, :]).reshape(-1, 3)
+    pos = corners.reshape(-1, 3)
+    lo, span = v.min(axis=0), np.ptp(v, axis=0)
+    wide = np.argsort(-span)[:2]
+    uv = (pos[:, wide] - lo[wide]) / np.maximum(span[wide], 1e-12)
+    u_dir = np.zeros(3)
+    u_dir[wide[0]] = 1.0
+    tangent = u_dir - (normals @ u_dir)[:, None] * normals
+    length = np.linalg.norm(tangent, axis=1, keepdims=True)
+    fallback = np.zeros(3)
+    fallback[wide[1]] = 1.0
+    tangent = np.where(length > 1e-6, tangent / np.maximum(length, 1e-12), fallback)
+    count = len(tri)
+    return Mesh(pack_vertices(pos, normals, tangent, uv), np.arange(3 * count, dtype=np.int32).reshape(count, 3))
+
+
 def parse_resolution(text: str) -> tuple[int, int]:
     """'16' -> (16, 16); '40,60' -> (40, 60): latitude bands, longitude segments."""
     parts = [p for p in text.replace("x", ",").split(",") if p.strip()]

@@ -114,6 +114,7 @@ class Renderer:
         self._cloth: Mesh | None = None
         self._cloth_vbo = None
         self._meshes: list[tuple[object, object, object, int]] = []  # vbo, tri ibo, edge ibo, id
+        self._poses: list[np.ndarray] = []  # a (4, 4) model matrix per collider mesh
         self.samples = 0
         self._depth = 0
         units = {1: texture, 2: height_map, **(textures or {})}
@@ -193,15 +194,28 @@ class Renderer:
 
     @_current
     def set_colliders(self, meshes: list[Mesh]) -> None:
+        """The colliders' meshes in their rest poses, uploaded once; each is drawn
+        at its model matrix (``set_collider_poses``; the identity until then).
+        A mesh's ``lines`` (else its triangles' edges) are its wireframe."""
         for vbo, tri, edge, ident in self._meshes:
             self._release_vaos(ident)
             for buf in (vbo, tri, edge):
                 buf.release()
         self._meshes = []
         for k, m in enumerate(meshes, start=1):
+            lines = m.lines if m.lines is not None else _edges(m.triangles)
             self._meshes.append((self.ctx.buffer(m.vertices.astype(np.float32).tobytes()),
                                  self.ctx.buffer(m.triangles.astype(np.int32).tobytes()),
-                                 self.ctx.buffer(_edges(m.triangles).tobytes()), k))
+                                 self.ctx.buffer(np.ascontiguousarray(lines, dtype=np.int32).tobytes()), k))
+        self._poses = [np.eye(4)] * len(meshes)
+
+    def set_collider_poses(self, matrices: list[np.ndarray]) -> None:
+        """Where each collider is now: a (4, 4) model matrix per mesh given to
+        ``set_colliders``, in its order (``x_now = M @ x_rest``); no GL call, it
+        takes effect at the next draw through the shaders' ``u_model``."""
+        if len(matrices) != len(self._meshes):
+            raise ValueError(f"{len(matrices)} collider poses for {len(self._meshes)} colliders")
+        self._poses = [np.asarray(m, dtype=np.float64) for m in matrices]
 
     def _release_vaos(self, ident: int, kind: str | None = None) -> None:
         for key in [k for k in self._vaos if k[1] == ident and (kind is None or k[2] == kind)]:
@@ -277,7 +291,9 @@ class Renderer:
                         vao.render(moderngl.TRIANGLES, vertices=3 * count, first=3 * first)
         if self._meshes:
             self._set_uniforms(prog, camera, settings, aspect, settings.wire_color if wire else COLLIDER_COLOR)
-            for vbo, tri, edge, ident in self._meshes:
+            for (vbo, tri, edge, ident), pose in zip(self._meshes, self._poses):
+                if "u_model" in prog:
+                    prog["u_model"].write(pose.T.astype("f4").tobytes())  # GLSL is column-major
                 if wire:
                     self._vao(settings.shader, prog, ident, "edges", vbo, edge).render(moderngl.LINES)
                 else:

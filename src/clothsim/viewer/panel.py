@@ -3,6 +3,8 @@
 A scene of one cloth shows its material under "Springs"; a scene of several
 shows one collapsing section per cloth, named by the cloth, each with that
 cloth's own toggles, ks, density and damping (``sim.cloths[i].params``).
+"Simulation" has a friction slider per collider, "Wind" edits ``sim.wind``
+(or adds one).
 """
 
 from __future__ import annotations
@@ -10,6 +12,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from imgui_bundle import imgui
+
+from ..world_spec import WindSpec
 
 if TYPE_CHECKING:
     from .app import ViewerApp
@@ -46,6 +50,26 @@ def _material(app: ViewerApp, cloth) -> None:
     _, m.damping = _slider("damping [%]", m.damping, 0.0, 100.0, "%.2f")
 
 
+def _wind(app: ViewerApp, sim) -> None:
+    """``sim.wind`` edited live: velocity [m/s], turbulence, drag and lift; a
+    button adds a breeze along +x where the scene has none"""
+    w = sim.wind
+    if w is None:
+        if imgui.button("add wind"):
+            sim.wind = WindSpec(velocity=(2.0, 0.0, 0.0))
+        _remember(app, "wind/add")
+        return
+    _, v = imgui.slider_float3("velocity [m/s]", list(w.velocity), -20.0, 20.0)
+    w.velocity = tuple(float(c) for c in v)
+    _remember(app, "wind/velocity")
+    _, w.turbulence = _slider("turbulence", w.turbulence, 0.0, 1.0, "%.2f")
+    _remember(app, "wind/turbulence")
+    _, w.drag = _slider("drag", w.drag, 0.0, 5.0, "%.2f")
+    _remember(app, "wind/drag")
+    _, w.lift = _slider("lift", w.lift, 0.0, 5.0, "%.2f")
+    _remember(app, "wind/lift")
+
+
 def draw_panel(app: ViewerApp) -> None:
     sim, p, s = app.sim, app.sim.params, app.settings
     app.panel_items = {}
@@ -72,10 +96,14 @@ def draw_panel(app: ViewerApp) -> None:
         _, g = imgui.slider_float3("gravity", list(p.gravity), -20.0, 20.0)
         p.gravity = tuple(g)
         _, p.self_collision = imgui.checkbox("self-collision", p.self_collision)
-        for k, sphere in enumerate(sim.spheres):
-            _, sphere.friction = _slider(f"sphere {k} friction", sphere.friction, 0.0, 1.0, "%.2f")
-        for k, plane in enumerate(sim.planes):
-            _, plane.friction = _slider(f"plane {k} friction", plane.friction, 0.0, 1.0, "%.2f")
+        for kind, colliders in (("sphere", sim.spheres), ("plane", sim.planes), ("box", sim.boxes),
+                                ("mesh", sim.mesh_colliders)):
+            for k, c in enumerate(colliders):
+                _, c.friction = _slider(f"{kind} {k} friction", c.friction, 0.0, 1.0, "%.2f")
+                _remember(app, f"{kind}{k}/friction")
+
+    if imgui.collapsing_header("Wind", imgui.TreeNodeFlags_.default_open.value):
+        _wind(app, sim)
 
     if imgui.collapsing_header("Appearance", imgui.TreeNodeFlags_.default_open.value):
         names = app.shader_names
