@@ -28,6 +28,7 @@ from numba import njit
 
 from . import box, plane, sphere
 from .box import collide_boxes, settle_boxes
+from .mesh import collide_meshes, settle_meshes
 from .plane import PLANE_OFFSET, collide_planes
 from .sphere import collide_spheres
 
@@ -53,6 +54,7 @@ def collide(P, L, free, control, lo, hi, s):
     collide_spheres(P, L, free, control.spheres, lo, hi, s)
     collide_planes(P, L, free, control.planes, lo, hi, s)
     collide_boxes(P, L, free, control.boxes, lo, hi, s)
+    collide_meshes(P, L, free, control, lo, hi, s)
 
 
 @njit(cache=True)
@@ -60,6 +62,7 @@ def settle(P, Q, free, control, lo, hi, s):
     """Points ``lo:hi`` that the Provot pass moved from Q into a box or across a
     mesh are put back where they crossed (see the module)."""
     settle_boxes(P, Q, free, control.boxes, lo, hi, s)
+    settle_meshes(P, Q, free, control, lo, hi, s)
 
 
 @njit(cache=True)

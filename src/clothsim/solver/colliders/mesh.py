@@ -11,8 +11,9 @@ at its end.
 :func:`collide_meshes`: a free point's last position, carried by the mesh's
 motion, ``q0 = R_before^T (L - o_before)``, and its position now,
 ``q1 = R_now^T (P - o_now)``, both in the rest frame, make a segment. At its
-first crossing h with a triangle (normal n) the point is put ``margin`` off
-the triangle's plane on the side it came from, S = h + side * margin * n,
+first crossing with a triangle (normal n) its position now is put on the
+triangle's plane and ``margin`` off it on the side it came from (or as far
+as q0 was, if nearer: a point resting within the margin does not bounce),
 then moved toward q0 by the CS184 friction rule, q0 + (1 - friction)(S - q0),
 which is friction relative to the mesh, and taken back to the world by the
 now pose. Should that corrected segment q0 -> new cross another triangle
@@ -73,6 +74,17 @@ def pose_rows(R_now, o_now, R_before, o_before, friction, margin) -> np.ndarray:
     out[..., 24] = friction
     out[..., 25] = margin
     return out
+
+
+def pack_poses(colliders, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -> np.ndarray:
+    """The ``meshes`` field for a frame from ``t0`` of ``substeps`` substeps of ``dt``
+    [s]: pose rows (T, K, 26) from objects with ``pivot``, ``animation`` (or None),
+    ``friction`` and ``margin`` (the scene's mesh colliders)."""
+    from ...motion import slot_poses
+    from .motion_rows import stack_slots
+
+    return stack_slots([pose_rows(*slot_poses(c.animation, c.pivot, t0, dt, substeps), c.friction, c.margin)
+                        for c in colliders])
 
 
 # --- one triangle ------------------------------------------------------------------
@@ -229,12 +241,18 @@ def _first_crossing(tris, g, cells, items, q0, q1, reach, entry_only):
 
 @njit(**EXACT_OPTIONS)
 def _put_off(tris, t, q0, q1, s, margin):
-    """The crossing at parameter s of q0 -> q1 with triangle t, moved ``margin`` [m] off
-    the triangle's plane to the side q0 came from (the side the motion leaves)."""
+    """Where a point whose move q0 -> q1 crossed triangle t (at parameter s) goes:
+    q1 put on the triangle's plane, as a plane collider puts it, then ``margin`` [m]
+    off it on the side q0 came from, or only as far as q0 was if that is nearer (a
+    point resting within the margin must not bounce off it). Friction alone
+    (the caller's) takes tangential motion away, not the segment."""
     nx, ny, nz = _unit_normal(tris, t)
     dx, dy, dz = q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]
-    off = margin if dx * nx + dy * ny + dz * nz < 0.0 else -margin
-    return q0[0] + s * dx + off * nx, q0[1] + s * dy + off * ny, q0[2] + s * dz + off * nz
+    side = 1.0 if dx * nx + dy * ny + dz * nz < 0.0 else -1.0
+    d0 = abs((q0[0] - tris[t, 0]) * nx + (q0[1] - tris[t, 1]) * ny + (q0[2] - tris[t, 2]) * nz)
+    d1 = (q1[0] - tris[t, 0]) * nx + (q1[1] - tris[t, 1]) * ny + (q1[2] - tris[t, 2]) * nz
+    off = side * min(margin, d0) - d1
+    return q1[0] + off * nx, q1[1] + off * ny, q1[2] + off * nz
 
 
 @njit(**EXACT_OPTIONS)
