@@ -41,8 +41,12 @@ class Animation:
     @property
     def is_still(self) -> bool:
         """True when no key moves anything away from the first key's pose"""
-        first = self.keys[0]
-        return all(k.translate == first.translate and k.rotate == first.rotate for k in self.keys)
+        still = self.__dict__.get("_still")
+        if still is None:  # kept: the keys of a frozen animation never change
+            first = self.keys[0]
+            still = all(k.translate == first.translate and k.rotate == first.rotate for k in self.keys)
+            self.__dict__["_still"] = still
+        return still
 
     def offsets(self, times) -> tuple[np.ndarray, np.ndarray]:
         """(translation [m], angles [degrees]) at each of ``times`` [s], float64 (T, 3) each."""

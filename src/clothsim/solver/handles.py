@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from ..motion import slot_poses
+from .colliders.motion_rows import frame_poses
 
 
 def pack_handles(handles: Sequence, t0: float = 0.0, dt: float = 0.0,
@@ -27,7 +27,7 @@ def pack_handles(handles: Sequence, t0: float = 0.0, dt: float = 0.0,
         return None, None
     slots = []
     for h in handles:
-        R, o, _, _ = slot_poses(h.animation, h.pivot, t0, dt, substeps)
+        R, o, _ = frame_poses(h.animation, h.pivot, t0, dt, substeps)
         slots.append(np.einsum("tij,hj->thi", R, np.asarray(h.start, dtype=np.float64)) + o[:, None, :])
     T = max(len(s) for s in slots)
     moved_to = np.concatenate([np.broadcast_to(s, (T,) + s.shape[1:]) for s in slots], axis=1)

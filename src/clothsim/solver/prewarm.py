@@ -105,7 +105,8 @@ def calls(variant: str) -> list:
     points = Points(rest=rest, free=np.ones(n), thickness=0.01, center=np.zeros(3), span=1e3, triangles=triangles)
     knobs = Knobs(gravity=np.zeros(3), k_over_m=np.ones(6), enabled=np.ones(6, dtype=bool), keep=1.0,
                   dt2=1e-6, simulation_steps=1, self_collision=True, inv_mass=np.ones(n))
-    control = make_control(-1, np.zeros(3), _world(features, n), 0.0, 1e-3, 1)
+    world = _world(features, n)
+    control = make_control(-1, np.zeros(3), world, 0.0, 1e-3, 1, world.mesh_shapes)
     scratch = Scratch(P=np.ascontiguousarray(rest.T), L=np.ascontiguousarray(rest.T),
                       F=force_buffer(springs, n), masks=np.zeros((1, 2, 2), dtype=np.uint64),
                       Q=np.zeros((3, n)), W=np.zeros((3, n)))
@@ -175,9 +176,15 @@ def _world(features: set[str], n: int):
     from ..motion import Animation, Keyframe
     from ..scene import PlaneSpec, SphereSpec
     from ..world_spec import BoxSpec, WindSpec
+    from .colliders.mesh import pack_meshes
 
     still = Animation((Keyframe(0.0),))
+    tetra = SimpleNamespace(vertices=np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+                            triangles=np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]), closed=True,
+                            pivot=np.zeros(3), animation=None, friction=0.5, margin=1e-3)
+    meshes = [tetra] if "meshes" in features else []
     return SimpleNamespace(
+        mesh_colliders=meshes, mesh_shapes=pack_meshes(meshes),
         spheres=[SphereSpec((0.0, 0.0, 0.0), 0.1, 0.3)] if "spheres" in features else [],
         planes=[PlaneSpec((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 0.5)] if "planes" in features else [],
         boxes=[BoxSpec((0.0, 0.0, 0.0), (0.1, 0.1, 0.1), 0.5)] if "boxes" in features else [],

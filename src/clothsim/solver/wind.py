@@ -21,6 +21,8 @@ terms of (angular frequency, phase, direction x amplitude (3)).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numba import njit
 
@@ -48,16 +50,28 @@ def pack_wind(wind, t0: float = 0.0, dt: float = 0.0) -> np.ndarray | None:
     :func:`blow` is not compiled."""
     if wind is None:
         return None
-    v = np.asarray(wind.velocity, dtype=np.float64)
+    row = _still_row(tuple(map(float, wind.velocity)), float(wind.turbulence), float(wind.drag), float(wind.lift),
+                     int(wind.seed)).copy()
+    row[7], row[8] = t0, dt
+    return row
+
+
+@functools.lru_cache(maxsize=64)
+def _still_row(velocity: tuple, turbulence: float, drag: float, lift: float, seed: int) -> np.ndarray:
+    """the wind row less the frame's time, made once per setting (a frame's control is
+    made anew every frame)"""
+    v = np.asarray(velocity, dtype=np.float64)
     speed = float(np.linalg.norm(v))
     along = v / speed if speed > 0 else np.array([1.0, 0.0, 0.0])
     side = np.cross(along, [0.0, 1.0, 0.0] if abs(along[1]) < 0.9 else [1.0, 0.0, 0.0])
     side /= np.linalg.norm(side)
     up = np.cross(side, along)
     directions = np.array([along, along, side, side, up, up]) * np.array([[0.5], [0.5], [0.25], [0.25], [0.25], [0.25]])
-    terms = np.concatenate([gust_terms(int(wind.seed)), directions], axis=1)
-    head = [*v, wind.turbulence, wind.drag, wind.lift, AIR_DENSITY, t0, dt, GUSTS]
-    return np.concatenate([np.array(head, dtype=np.float64), terms.ravel()])
+    terms = np.concatenate([gust_terms(seed), directions], axis=1)
+    head = [*v, turbulence, drag, lift, AIR_DENSITY, 0.0, 0.0, GUSTS]
+    row = np.concatenate([np.array(head, dtype=np.float64), terms.ravel()])
+    row.setflags(write=False)
+    return row
 
 
 @njit(cache=True, inline="always")

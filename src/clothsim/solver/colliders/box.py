@@ -11,14 +11,15 @@ the box is thick in one substep is still stopped at the face it met.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
 from numba import njit
 
-from ...motion import rotation_matrices, slot_poses
-from ..shared import EXACT_OPTIONS
-from .motion_rows import carried, carry_columns, stack_slots
+from ...motion import rotation_matrices
+from ..shared import KERNEL_OPTIONS
+from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 COLUMNS = 17
 """centre, axes, half sizes, friction, margin; the carry follows"""
@@ -32,121 +33,164 @@ def pack(boxes: Sequence, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -
         return None
     out = []
     for b in boxes:
-        R, o, Rb, ob = slot_poses(getattr(b, "animation", None), b.center, t0, dt, substeps)
-        centre = R @ np.asarray(b.center, dtype=np.float64) + o
-        axes = R @ rotation_matrices(b.rotate)
-        fixed = np.broadcast_to(np.array([*(0.5 * np.asarray(b.size, dtype=np.float64)), b.friction, b.margin]),
-                                (len(R), 5))
-        out.append(np.concatenate([centre, axes.reshape(-1, 9), fixed, carry_columns(R, o, Rb, ob)], axis=1))
+        R, o, carry = frame_poses(getattr(b, "animation", None), b.center, t0, dt, substeps)
+        half = b.size
+        out.append(moving_rows(R, o, carry, points=b.center, frames=_axes(tuple(b.rotate)),
+                               fixed=(0.5 * half[0], 0.5 * half[1], 0.5 * half[2], b.friction, b.margin)))
     return stack_slots(out)
 
 
-@njit(cache=True, inline="always")
-def _local(row, x, y, z):
-    """(x, y, z) [m] in the frame of the box of ``row``"""
-    dx, dy, dz = x - row[0], y - row[1], z - row[2]
-    return (row[3] * dx + row[6] * dy + row[9] * dz,
-            row[4] * dx + row[7] * dy + row[10] * dz,
-            row[5] * dx + row[8] * dy + row[11] * dz)
+@functools.lru_cache(maxsize=256)
+def _axes(rotate: tuple) -> np.ndarray:
+    """a box's own rotation, once per angles (the control is made every frame)"""
+    return rotation_matrices(rotate)
+
+
+TINY = 1e-300
+"""stands in for a zero coordinate change in the slab test: the entry times stay
+finite (fastmath assumes no infinities) and still order right"""
 
 
 @njit(cache=True, inline="always")
-def _world(row, u, v, w):
-    return (row[0] + row[3] * u + row[4] * v + row[5] * w,
-            row[1] + row[6] * u + row[7] * v + row[8] * w,
-            row[2] + row[9] * u + row[10] * v + row[11] * w)
+def _slab(a0, a1, h):
+    """entry and exit times (lo, hi) of the segment a0 -> a1 along one axis through
+    the slab |a| < h; both finite"""
+    d = a1 - a0
+    d = d if abs(d) > TINY else TINY
+    ta = (-h - a0) / d
+    tb = (h - a0) / d
+    return min(ta, tb), max(ta, tb)
 
 
 @njit(cache=True, inline="always")
-def _resolve(q0, q1, half, margin, keep, out):
-    """Whether a point that went from ``q0`` to ``q1`` (box frame, (3,) each) hit the
-    box, and if so where it ends, in ``out``: ``q1`` put on the face its segment
-    entered, ``margin`` outside it (or as far as q0 was, if nearer), then moved back toward q0 by ``keep``
-    (1 - friction); a point that was inside already goes to the nearest face,
-    margin outside, with no friction."""
-    outside0 = False
-    for c in range(3):
-        if abs(q0[c]) >= half[c]:
-            outside0 = True
-    if outside0:
-        t_in, t_out, axis = 0.0, 1.0, -1
-        for c in range(3):
-            d = q1[c] - q0[c]
-            if d == 0.0:
-                if abs(q0[c]) >= half[c]:
-                    return False
-                continue
-            ta = (-half[c] - q0[c]) / d
-            tb = (half[c] - q0[c]) / d
-            lo, hi = min(ta, tb), max(ta, tb)
-            if lo > t_in or axis < 0 and lo >= t_in:
-                t_in, axis = lo, c
-            t_out = min(t_out, hi)
-        if axis < 0 or t_in > t_out or not t_in <= 1.0:
-            return False
-        # the face the segment met decides where the point goes: the current
-        # position put on that face, as the plane does, so that the friction
-        # alone (not the segment) takes the tangential motion away
-        # ... and ``margin`` off it, or as far off as it came from if that was
-        # nearer: a point resting within the margin must not bounce off it
-        for c in range(3):
-            out[c] = q1[c]
-        off = min(margin, abs(q0[axis]) - half[axis])
-        out[axis] = (1.0 if q0[axis] > 0.0 else -1.0) * (half[axis] + off)
-        for c in range(3):
-            out[c] = q0[c] + keep * (out[c] - q0[c])
-        return True
-    inside1 = True
-    for c in range(3):
-        if not abs(q1[c]) < half[c]:
-            inside1 = False
-    if not inside1:
-        return False
-    axis, room = 0, np.inf
-    for c in range(3):
-        gap = half[c] - abs(q1[c])
-        if gap < room:
-            axis, room = c, gap
-    for c in range(3):
-        out[c] = q1[c]
-    out[axis] = (1.0 if q1[axis] > 0.0 else -1.0) * (half[axis] + margin)
-    return True
+def _onto(a0, a1, h, margin, keep):
+    """the coordinate along the face axis of a point that entered through the face on
+    a0's side: a1 put on the face, margin off it (or as far as a0 was, if nearer: a
+    point resting within the margin must not bounce off it), then back toward a0 by
+    keep (1 - friction)"""
+    face = np.copysign(h + min(margin, abs(a0) - h), a0)
+    return a0 + keep * (face - a0)
 
 
-@njit(**EXACT_OPTIONS)
-def _boxes_pass(P, R, free, boxes, lo, hi, s, with_motion):
-    """Points ``lo:hi`` of P against every box, from their reference positions R
-    (last positions carried by each box's motion and with friction, or with
-    neither: see the two kernels)."""
+@njit(cache=True, inline="always")
+def _place(u0, v0, w0, u1, v1, w1, hu, hv, hw, margin, keep):
+    """(hit, u, v, w): where a point that went from q0 to q1 (box frame) ends. Into the
+    box from outside: at the face its segment met (:func:`_onto`; the other
+    coordinates by the friction rule); inside already and still: out through the
+    nearest face, margin outside, with no friction; anything else: no hit."""
+    outside0 = (abs(u0) >= hu) | (abs(v0) >= hv) | (abs(w0) >= hw)
+    inside1 = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw)
+    lo_u, hi_u = _slab(u0, u1, hu)
+    lo_v, hi_v = _slab(v0, v1, hv)
+    lo_w, hi_w = _slab(w0, w1, hw)
+    t_in = max(lo_u, max(lo_v, lo_w))
+    t_out = min(hi_u, min(hi_v, hi_w))
+    entered = outside0 & (t_in <= t_out) & (t_in <= 1.0)
+    on_u = lo_u >= t_in
+    on_v = (not on_u) & (lo_v >= t_in)
+    on_w = (not on_u) & (not on_v)
+    if entered:
+        u = _onto(u0, u1, hu, margin, keep) if on_u else u0 + keep * (u1 - u0)
+        v = _onto(v0, v1, hv, margin, keep) if on_v else v0 + keep * (v1 - v0)
+        w = _onto(w0, w1, hw, margin, keep) if on_w else w0 + keep * (w1 - w0)
+        return True, u, v, w
+    if outside0 or not inside1:
+        return False, u1, v1, w1
+    gu, gv, gw = hu - abs(u1), hv - abs(v1), hw - abs(w1)
+    if gu <= gv and gu <= gw:
+        return True, (hu + margin if u1 > 0.0 else -hu - margin), v1, w1
+    if gv <= gw:
+        return True, u1, (hv + margin if v1 > 0.0 else -hv - margin), w1
+    return True, u1, v1, (hw + margin if w1 > 0.0 else -hw - margin)
+
+
+@njit(**KERNEL_OPTIONS)
+def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
+    """Points ``lo:hi`` of P against every box, from their reference positions R:
+    last positions, carried by each box's motion over the substep where ``carry``,
+    and the friction rule where ``friction`` (see the two kernels).
+
+    Two passes a box. A branch-free one over every point (:func:`_common`, it
+    vectorises) places the common case and marks the rest whose segment's
+    bounding box, in the box's frame, overlaps the box (near an edge or
+    corner, a fast point, a point inside from before); the second places the
+    marked few (:func:`_place`)."""
     rows = boxes[min(s, boxes.shape[0] - 1)]
-    q0, q1, half, out = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    marked = np.empty(max(hi - lo, 0), dtype=np.bool_)
     for k in range(rows.shape[0]):
         row = rows[k]
-        half[0], half[1], half[2] = row[12], row[13], row[14]
-        keep = 1.0 - row[15] if with_motion else 0.0
-        margin = row[16]
-        for p in range(lo, hi):
-            if free[p] == 0.0:
+        _common(P, R, free, row, lo, marked, carry, friction)
+        cx, cy, cz = row[0], row[1], row[2]
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
+                                                        row[9], row[10], row[11])
+        a = carry_of(row, COLUMNS)
+        keep = 1.0 - row[15] if friction else 0.0
+        for q in range(marked.shape[0]):
+            if not marked[q]:
                 continue
-            rx, ry, rz = R[0, p], R[1, p], R[2, p]
-            if with_motion:
-                rx, ry, rz = carried(row, COLUMNS, rx, ry, rz)
-            q1[0], q1[1], q1[2] = _local(row, P[0, p], P[1, p], P[2, p])
-            q0[0], q0[1], q0[2] = _local(row, rx, ry, rz)
-            if not (np.isfinite(q0[0] + q0[1] + q0[2] + q1[0] + q1[1] + q1[2])):
-                continue
-            # the segment's box misses the box: the common case, decided at once
-            miss = False
-            for c in range(3):
-                if min(q0[c], q1[c]) >= half[c] or max(q0[c], q1[c]) <= -half[c]:
-                    miss = True
-            if miss:
-                continue
-            if _resolve(q0, q1, half, margin, keep, out):
-                P[0, p], P[1, p], P[2, p] = _world(row, out[0], out[1], out[2])
+            p = lo + q
+            mx, my, mz = R[0, p], R[1, p], R[2, p]
+            if carry:
+                mx, my, mz = carry_point(a, mx, my, mz)
+            dx, dy, dz = P[0, p] - cx, P[1, p] - cy, P[2, p] - cz
+            ex, ey, ez = mx - cx, my - cy, mz - cz
+            hit, fu, fv, fw = _place(r00 * ex + r10 * ey + r20 * ez, r01 * ex + r11 * ey + r21 * ez,
+                                     r02 * ex + r12 * ey + r22 * ez, r00 * dx + r10 * dy + r20 * dz,
+                                     r01 * dx + r11 * dy + r21 * dz, r02 * dx + r12 * dy + r22 * dz,
+                                     row[12], row[13], row[14], row[16], keep)
+            if hit:
+                P[0, p] = cx + r00 * fu + r01 * fv + r02 * fw
+                P[1, p] = cy + r10 * fu + r11 * fv + r12 * fw
+                P[2, p] = cz + r20 * fu + r21 * fv + r22 * fw
 
 
-@njit(**EXACT_OPTIONS)
+@njit(**KERNEL_OPTIONS)
+def _common(P, R, free, row, lo, marked, carry, friction):
+    """The vector pass of :func:`_boxes_pass` for the box of ``row`` over points
+    ``lo:lo + len(marked)``: a point that went in through the one face its
+    reference position was outside of (a cloth resting on a box crosses its
+    face every substep) is placed; ``marked`` is set for the others whose
+    segment's bounding box meets the box."""
+    n = marked.shape[0]
+    x, y, z = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
+    rx, ry, rz = R[0, lo:lo + n], R[1, lo:lo + n], R[2, lo:lo + n]
+    fr = free[lo:lo + n]
+    cx, cy, cz = row[0], row[1], row[2]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
+                                                    row[9], row[10], row[11])
+    hu, hv, hw = row[12], row[13], row[14]
+    keep = 1.0 - row[15] if friction else 0.0
+    margin = row[16]
+    a = carry_of(row, COLUMNS)
+    for p in range(n):
+        mx, my, mz = rx[p], ry[p], rz[p]
+        if carry:
+            mx, my, mz = carry_point(a, mx, my, mz)
+        dx, dy, dz = x[p] - cx, y[p] - cy, z[p] - cz
+        ex, ey, ez = mx - cx, my - cy, mz - cz
+        u1 = r00 * dx + r10 * dy + r20 * dz
+        u0 = r00 * ex + r10 * ey + r20 * ez
+        v1 = r01 * dx + r11 * dy + r21 * dz
+        v0 = r01 * ex + r11 * ey + r21 * ez
+        w1 = r02 * dx + r12 * dy + r22 * dz
+        w0 = r02 * ex + r12 * ey + r22 * ez
+        out_u, out_v, out_w = abs(u0) >= hu, abs(v0) >= hv, abs(w0) >= hw
+        inside1 = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw)
+        simple = inside1 & (np.int32(out_u) + np.int32(out_v) + np.int32(out_w) == 1) & (fr[p] != 0.0)
+        fu = _onto(u0, u1, hu, margin, keep) if out_u else u0 + keep * (u1 - u0)
+        fv = _onto(v0, v1, hv, margin, keep) if out_v else v0 + keep * (v1 - v0)
+        fw = _onto(w0, w1, hw, margin, keep) if out_w else w0 + keep * (w1 - w0)
+        nx = cx + r00 * fu + r01 * fv + r02 * fw
+        ny = cy + r10 * fu + r11 * fv + r12 * fw
+        nz = cz + r20 * fu + r21 * fv + r22 * fw
+        x[p] = nx if simple else x[p]
+        y[p] = ny if simple else y[p]
+        z[p] = nz if simple else z[p]
+        marked[p] = ((min(u0, u1) < hu) & (max(u0, u1) > -hu) & (min(v0, v1) < hv) & (max(v0, v1) > -hv)
+                     & (min(w0, w1) < hw) & (max(w0, w1) > -hw) & (fr[p] != 0.0) & (not simple))
+
+
+@njit(**KERNEL_OPTIONS)
 def collide_boxes(P, L, free, boxes, lo, hi, s):
     """Points ``lo:hi`` that entered a box over substep ``s`` (their segment from the
     last position, carried by the box's motion) are put at the face they met,
@@ -154,13 +198,14 @@ def collide_boxes(P, L, free, boxes, lo, hi, s):
     friction. ``boxes`` None: nothing (pruned when numba compiles it)."""
     if boxes is None:
         return
-    _boxes_pass(P, L, free, boxes, lo, hi, s, True)
+    # no box moves (one slot): the carry is the identity, and is not computed
+    _boxes_pass(P, L, free, boxes, lo, hi, s, boxes.shape[0] > 1, True)
 
 
-@njit(**EXACT_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def settle_boxes(P, Q, free, boxes, lo, hi, s):
     """Points ``lo:hi`` that a later pass moved from Q (after the colliders) into a
     box are put back at the face they crossed, margin outside, with no friction."""
     if boxes is None:
         return
-    _boxes_pass(P, Q, free, boxes, lo, hi, s, False)
+    _boxes_pass(P, Q, free, boxes, lo, hi, s, False, False)

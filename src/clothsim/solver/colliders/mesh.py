@@ -80,11 +80,13 @@ def pack_poses(colliders, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -
     """The ``meshes`` field for a frame from ``t0`` of ``substeps`` substeps of ``dt``
     [s]: pose rows (T, K, 26) from objects with ``pivot``, ``animation`` (or None),
     ``friction`` and ``margin`` (the scene's mesh colliders)."""
-    from ...motion import slot_poses
-    from .motion_rows import stack_slots
+    from .motion_rows import frame_poses_both, stack_slots
 
-    return stack_slots([pose_rows(*slot_poses(c.animation, c.pivot, t0, dt, substeps), c.friction, c.margin)
-                        for c in colliders])
+    rows = []
+    for c in colliders:
+        R, o, _ = frame_poses_both(c.animation, c.pivot, t0, dt, substeps)
+        rows.append(pose_rows(R[1:], o[1:], R[:-1], o[:-1], c.friction, c.margin))
+    return stack_slots(rows)
 
 
 # --- one triangle ------------------------------------------------------------------

@@ -14,9 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from ...motion import slot_poses
 from ..shared import KERNEL_OPTIONS
-from .motion_rows import carried, carry_columns, stack_slots
+from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 PLANE_OFFSET = 1e-4
 """distance from the plane at which a point that crossed it is put back [m]"""
@@ -31,11 +30,8 @@ def pack(planes: Sequence, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) 
         return None
     out = []
     for p in planes:
-        R, o, Rb, ob = slot_poses(getattr(p, "animation", None), p.point, t0, dt, substeps)
-        point = R @ np.asarray(p.point, dtype=np.float64) + o
-        normal = R @ np.asarray(p.normal, dtype=np.float64)
-        friction = np.full((len(R), 1), p.friction, dtype=np.float64)
-        out.append(np.concatenate([point, normal, friction, carry_columns(R, o, Rb, ob)], axis=1))
+        R, o, carry = frame_poses(getattr(p, "animation", None), p.point, t0, dt, substeps)
+        out.append(moving_rows(R, o, carry, points=p.point, directions=p.normal, fixed=(p.friction,)))
     return stack_slots(out)
 
 
@@ -72,8 +68,9 @@ def collide_planes(P, L, free, planes, lo, hi, s):
                 y[p] = ty if hit else y[p]
                 z[p] = tz if hit else z[p]
             continue
+        a = carry_of(row, 7)
         for p in range(x.shape[0]):
-            mx, my, mz = carried(row, 7, lx[p], ly[p], lz[p])
+            mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
             d_now = (x[p] - px) * nx + (y[p] - py) * ny + (z[p] - pz) * nz
             d_last = (mx - px) * nx + (my - py) * ny + (mz - pz) * nz
             side = 1.0 if d_last >= 0.0 else -1.0

@@ -14,9 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from ...motion import slot_poses
 from ..shared import KERNEL_OPTIONS
-from .motion_rows import carried, carry_columns, stack_slots
+from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 
 def pack(spheres: Sequence, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -> np.ndarray | None:
@@ -27,10 +26,8 @@ def pack(spheres: Sequence, t0: float = 0.0, dt: float = 0.0, substeps: int = 1)
         return None
     out = []
     for s in spheres:
-        R, o, Rb, ob = slot_poses(getattr(s, "animation", None), s.origin, t0, dt, substeps)
-        centre = R @ np.asarray(s.origin, dtype=np.float64) + o
-        fixed = np.broadcast_to(np.array([s.radius, s.friction], dtype=np.float64), (len(R), 2))
-        out.append(np.concatenate([centre, fixed, carry_columns(R, o, Rb, ob)], axis=1))
+        R, o, carry = frame_poses(getattr(s, "animation", None), s.origin, t0, dt, substeps)
+        out.append(moving_rows(R, o, carry, points=s.origin, fixed=(s.radius, s.friction)))
     return stack_slots(out)
 
 
@@ -68,6 +65,7 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
                 y[p] = ny if hit else y[p]
                 z[p] = nz if hit else z[p]
             continue
+        a = carry_of(row, 5)
         for p in range(x.shape[0]):
             dx = x[p] - cx
             dy = y[p] - cy
@@ -75,7 +73,7 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
             d2 = dx * dx + dy * dy + dz * dz
             hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0
             f = r / np.sqrt(d2 if hit else 1.0)
-            mx, my, mz = carried(row, 5, lx[p], ly[p], lz[p])
+            mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
             nx = mx + keep * (cx + dx * f - mx)
             ny = my + keep * (cy + dy * f - my)
             nz = mz + keep * (cz + dz * f - mz)

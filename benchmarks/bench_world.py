@@ -1,0 +1,161 @@
+"""What the moving world costs a 50x50 cloth per substep, side by side.
+
+Each case is ``sphere.json`` (50x50, self-collision on, one thread) with its
+collider swapped: the still sphere of today; the same sphere spinning; a box
+(a table under the cloth); the same box sliding and turning; the sphere with
+a 5 m/s wind; no collider at all (what the rest of the substep costs). Cases
+run in interleaved rounds, alternating their order, one second of simulated
+time each from the same start; a line per case gives the best and median
+substeps/s and microseconds a substep, and how much more than the still
+sphere's substep it costs.
+
+The cloth does not meet a box as it meets a sphere (it folds at the box's
+edges, and self-collision then has more to do), so whole substeps compare
+scenes, not colliders. ``--kernels`` times the collider kernels alone instead,
+each on the cloth of its own case after 1.5 s (draped on the sphere, lying
+on the box) one substep's fall further, called on a fresh copy of it many
+times (the copy's own time taken off), best of the rounds: the still sphere,
+the spinning sphere (on the still one's cloth), the box, the same box
+moving, the wind (its pass over the triangles), per call of one substep.
+
+    python benchmarks/bench_world.py [--rounds 5] [--seconds 1] [--kernels]
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import statistics
+import time
+
+from common import emit, machine
+
+from clothsim import Simulation
+from clothsim.scene import parse_scene
+from clothsim.standard_scenes import scene_path
+
+SPIN = {"keys": [{"t": 0}, {"t": 4, "rotate": [0, 360, 0]}], "loop": True}
+SLIDE = {"keys": [{"t": 0}, {"t": 2, "translate": [0.2, 0, 0], "rotate": [0, 30, 0]}], "loop": True}
+
+
+def cases(base: dict) -> dict[str, dict]:
+    sphere = base["sphere"]
+    box = {"center": sphere["origin"], "size": [0.6, 0.2, 0.6], "friction": sphere["friction"]}
+    out = {"sphere": base}
+    out["spinning sphere"] = {**base, "sphere": {**sphere, "animation": SPIN}}
+    no_sphere = {k: v for k, v in base.items() if k != "sphere"}
+    out["box"] = {**no_sphere, "box": box}
+    out["moving box"] = {**no_sphere, "box": {**box, "animation": SLIDE}}
+    out["sphere + wind"] = {**base, "wind": {"velocity": [5.0, 0.0, 0.0]}}
+    out["no collider"] = no_sphere
+    return {name: copy.deepcopy(scene) for name, scene in out.items()}
+
+
+def run_once(sim: Simulation, seconds: float) -> float:
+    """substeps/s over ``seconds`` of simulated time from the start"""
+    sim.reset()
+    frames = int(round(seconds * sim.params.frames_per_sec))
+    t0 = time.perf_counter()
+    for _ in range(frames):
+        sim.step()
+    return frames * sim.params.simulation_steps / (time.perf_counter() - t0)
+
+
+def _settled(scene: dict):
+    """(P, L, free, sim): the (3, N) positions of ``scene``'s cloth after 1.5 s, one
+    substep's fall more (so that the points resting on the collider cross it again)"""
+    import numpy as np
+
+    sim = Simulation(parse_scene(scene, "bench"), threads=1)
+    sim.run(1.5)
+    P = np.ascontiguousarray(sim.state.positions.T)
+    P[1] -= 9.8 * sim.params.dt ** 2
+    return P, np.ascontiguousarray(sim.state.last_positions.T), sim.solver.points.free, sim
+
+
+def kernel_times(rounds: int, calls: int = 400) -> None:
+    import numpy as np
+
+    from clothsim.motion import Animation, Keyframe
+    from clothsim.solver.colliders import box, sphere
+    from clothsim.solver.wind import blow, pack_wind
+    from clothsim.world_spec import WindSpec
+
+    base = json.loads(scene_path("sphere").read_text())
+    scenes = cases(base)
+    on_sphere = _settled(scenes["sphere"])
+    on_box = _settled(scenes["box"])
+    sim = on_sphere[3]
+    dt, steps = sim.params.dt, sim.params.simulation_steps
+    spin = Animation((Keyframe(0.0), Keyframe(4.0, rotate=(0.0, 360.0, 0.0))), loop=True)
+    slide = Animation((Keyframe(0.0), Keyframe(2.0, (0.2, 0.0, 0.0), (0.0, 30.0, 0.0))), loop=True)
+    s0, b0 = sim.spheres[0], on_box[3].boxes[0]
+    moving_sphere = type(s0)(s0.origin, s0.radius, s0.friction, spin)
+    moving_box = type(b0)(b0.center, b0.size, b0.friction, animation=slide)
+    work = {"sphere": (sphere.collide_spheres, sphere.pack([s0], 1.5, dt, steps), on_sphere),
+            "spinning sphere": (sphere.collide_spheres, sphere.pack([moving_sphere], 1.5, dt, steps), on_sphere),
+            "box": (box.collide_boxes, box.pack([b0], 1.5, dt, steps), on_box),
+            "moving box": (box.collide_boxes, box.pack([moving_box], 1.5, dt, steps), on_box)}
+    wind = pack_wind(WindSpec((5.0, 0.0, 0.0)), 1.5, dt)
+    knobs = sim.solver.knobs(sim.params)
+    n = on_sphere[0].shape[1]
+    W, P = np.zeros((3, n)), np.zeros((3, n))
+    zero, count, slot = np.int64(0), np.int64(n), np.int64(3)
+
+    def run(name):
+        if name in ("copy", "wind"):
+            P0, L = on_sphere[0], on_sphere[1]
+            if name == "copy":
+                return lambda: np.copyto(P, P0)
+            return lambda: (np.copyto(P, P0), blow(P, L, sim.solver.points, knobs.inv_mass, knobs.dt2, wind, W, slot))
+        kernel, rows, (P0, L, free, _) = work[name]
+        return lambda: (np.copyto(P, P0), kernel(P, L, free, rows, zero, count, slot))
+
+    names = ["copy", *work, "wind"]
+    best = {name: np.inf for name in names}
+    for name in names:
+        run(name)()  # compile
+    for r in range(rounds):
+        for name in (names if r % 2 == 0 else names[::-1]):
+            f = run(name)
+            t0 = time.thread_time()
+            for _ in range(calls):
+                f()
+            best[name] = min(best[name], (time.thread_time() - t0) / calls)
+    sphere_us = (best["sphere"] - best["copy"]) * 1e6
+    for name in names[1:]:
+        us = (best[name] - best["copy"]) * 1e6
+        emit({"bench": "world-kernels", "case": name, "points": n, "us_per_substep": round(us, 2),
+              "of_sphere": round(us / sphere_us, 2), **machine()})
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--seconds", type=float, default=1.0)
+    ap.add_argument("--kernels", action="store_true", help="the collider kernels alone, on one state")
+    args = ap.parse_args()
+    if args.kernels:
+        kernel_times(args.rounds)
+        return
+    base = json.loads(scene_path("sphere").read_text())
+    sims = {name: Simulation(parse_scene(scene, "bench"), threads=1) for name, scene in cases(base).items()}
+    for sim in sims.values():  # compile and warm up
+        sim.run(0.05)
+    rates: dict[str, list[float]] = {name: [] for name in sims}
+    names = list(sims)
+    for r in range(args.rounds):
+        for name in (names if r % 2 == 0 else names[::-1]):
+            rates[name].append(run_once(sims[name], args.seconds))
+    best_sphere = max(rates["sphere"])
+    for name in names:
+        best = max(rates[name])
+        emit({"bench": "world", "case": name, "points": 2500, "threads": 1, "rounds": args.rounds,
+              "substeps_per_s_best": round(best), "substeps_per_s_median": round(statistics.median(rates[name])),
+              "us_per_substep_best": round(1e6 / best, 2),
+              "us_more_than_sphere": round(1e6 / best - 1e6 / best_sphere, 2), **machine()})
+
+
+if __name__ == "__main__":
+    main()
