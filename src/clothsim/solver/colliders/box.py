@@ -119,7 +119,8 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
     marked = np.empty(max(hi - lo, 0), dtype=np.bool_)
     for k in range(rows.shape[0]):
         row = rows[k]
-        _common(P, R, free, row, lo, marked, carry, friction)
+        aligned = row[3] == 1.0 and row[7] == 1.0 and row[11] == 1.0
+        _common(P, R, free, row, lo, marked, carry, friction, aligned)
         cx, cy, cz = row[0], row[1], row[2]
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
                                                         row[9], row[10], row[11])
@@ -145,12 +146,13 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
 
 
 @njit(**KERNEL_OPTIONS)
-def _common(P, R, free, row, lo, marked, carry, friction):
+def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     """The vector pass of :func:`_boxes_pass` for the box of ``row`` over points
     ``lo:lo + len(marked)``: a point that went in through the one face its
     reference position was outside of (a cloth resting on a box crosses its
     face every substep) is placed; ``marked`` is set for the others whose
-    segment's bounding box meets the box."""
+    segment's bounding box meets the box. ``aligned``: the box's axes are the
+    world's, and the loop skips the turns into and out of its frame."""
     n = marked.shape[0]
     x, y, z = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
     rx, ry, rz = R[0, lo:lo + n], R[1, lo:lo + n], R[2, lo:lo + n]
@@ -168,21 +170,27 @@ def _common(P, R, free, row, lo, marked, carry, friction):
             mx, my, mz = carry_point(a, mx, my, mz)
         dx, dy, dz = x[p] - cx, y[p] - cy, z[p] - cz
         ex, ey, ez = mx - cx, my - cy, mz - cz
-        u1 = r00 * dx + r10 * dy + r20 * dz
-        u0 = r00 * ex + r10 * ey + r20 * ez
-        v1 = r01 * dx + r11 * dy + r21 * dz
-        v0 = r01 * ex + r11 * ey + r21 * ez
-        w1 = r02 * dx + r12 * dy + r22 * dz
-        w0 = r02 * ex + r12 * ey + r22 * ez
+        if aligned:
+            u1, v1, w1, u0, v0, w0 = dx, dy, dz, ex, ey, ez
+        else:
+            u1 = r00 * dx + r10 * dy + r20 * dz
+            u0 = r00 * ex + r10 * ey + r20 * ez
+            v1 = r01 * dx + r11 * dy + r21 * dz
+            v0 = r01 * ex + r11 * ey + r21 * ez
+            w1 = r02 * dx + r12 * dy + r22 * dz
+            w0 = r02 * ex + r12 * ey + r22 * ez
         out_u, out_v, out_w = abs(u0) >= hu, abs(v0) >= hv, abs(w0) >= hw
         inside1 = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw)
         simple = inside1 & (np.int32(out_u) + np.int32(out_v) + np.int32(out_w) == 1) & (fr[p] != 0.0)
         fu = _onto(u0, u1, hu, margin, keep) if out_u else u0 + keep * (u1 - u0)
         fv = _onto(v0, v1, hv, margin, keep) if out_v else v0 + keep * (v1 - v0)
         fw = _onto(w0, w1, hw, margin, keep) if out_w else w0 + keep * (w1 - w0)
-        nx = cx + r00 * fu + r01 * fv + r02 * fw
-        ny = cy + r10 * fu + r11 * fv + r12 * fw
-        nz = cz + r20 * fu + r21 * fv + r22 * fw
+        if aligned:
+            nx, ny, nz = cx + fu, cy + fv, cz + fw
+        else:
+            nx = cx + r00 * fu + r01 * fv + r02 * fw
+            ny = cy + r10 * fu + r11 * fv + r12 * fw
+            nz = cz + r20 * fu + r21 * fv + r22 * fw
         x[p] = nx if simple else x[p]
         y[p] = ny if simple else y[p]
         z[p] = nz if simple else z[p]
