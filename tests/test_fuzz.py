@@ -78,6 +78,12 @@ def standard_scenes() -> dict[str, dict]:
             if "num_width_points" in cloth:
                 cloth["num_width_points"] = cloth["num_height_points"] = GRID_POINTS
                 cloth["pinned"] = [p for p in cloth.get("pinned", []) if max(p) < GRID_POINTS]
+                # a handle point outside the grid is an error: keep the handles' points that remain
+                handles = [dict(h, points=[p for p in h["points"] if max(p) < GRID_POINTS])
+                           for h in cloth.get("handles", [])]
+                handles = [h for h in handles if h["points"]]
+                if "handles" in cloth:
+                    cloth["handles"] = handles
         out[path.stem] = data
     return out
 

@@ -18,7 +18,10 @@ GRID = ["pinned2", "pinned4", "plane", "selfCollision", "sphere"]
 """the CS184 scenes: one 50x50 grid cloth each"""
 MESH = ["drape", "flag", "tablecloth", "two_cloths"]
 """clothsim's scenes of mesh cloths and of several cloths (tests/test_mesh_scenes.py)"""
-STANDARD = sorted(GRID + MESH, key=str.lower)
+WORLD = ["curtain", "spinning_sphere", "table_pull", "torus_drape", "windy_flag"]
+"""clothsim's scenes of the moving world: boxes, mesh colliders, motion, handles, wind
+(tests/test_world_scenes.py)"""
+STANDARD = sorted(GRID + MESH + WORLD, key=str.lower)
 
 
 def test_standard_scenes_inside_the_package():

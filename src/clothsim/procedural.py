@@ -226,6 +226,42 @@ def delaunay_square(count: int = 2500, side: float = 1.0, spacing: float = 0.014
     return reorder(mesh, morton_order(points))
 
 
+def torus(major: float = 0.25, minor: float = 0.08, segments: int = 64, sides: int = 24) -> Mesh:
+    """A closed torus of triangles about the y axis, centred on the origin: the
+    circle of radius ``major`` [m] in the y=0 plane is its centre-line, and the
+    tube around it has radius ``minor`` [m]. ``segments`` vertices along the
+    centre-line times ``sides`` around the tube, every vertex on the exact
+    surface; each quad of that grid is split along the same diagonal into two
+    triangles, 2 ``segments`` ``sides`` in all, every one wound
+    counter-clockwise seen from outside (its normal points away from the
+    centre-line). No vertex is repeated (the grid wraps round both ways), so
+    every edge is in exactly two triangles: a solid. UVs: the two angles
+    scaled to [0, 1)."""
+    if not 0 < minor < major:
+        raise ValueError(f"expected 0 < minor < major, got minor={minor}, major={major}")
+    a = 2 * np.pi * np.arange(segments) / segments  # along the centre-line
+    b = 2 * np.pi * np.arange(sides) / sides  # around the tube, from the outer equator up
+    aa, bb = np.meshgrid(a, b, indexing="ij")
+    ring = major + minor * np.cos(bb)
+    vertices = np.stack([ring * np.cos(aa), minor * np.sin(bb), -ring * np.sin(aa)], axis=-1).reshape(-1, 3)
+    i = np.arange(segments)[:, None]
+    j = np.arange(sides)[None, :]
+    p00 = (i * sides + j).ravel()
+    p10 = (((i + 1) % segments) * sides + j).ravel()
+    p01 = (i * sides + (j + 1) % sides).ravel()
+    p11 = (((i + 1) % segments) * sides + (j + 1) % sides).ravel()
+    faces = np.concatenate([np.stack([p00, p10, p11], 1), np.stack([p00, p11, p01], 1)]).astype(np.int64)
+    # outward: each face's normal against the direction from the centre-line to its centroid
+    centroid = vertices[faces].mean(axis=1)
+    foot = centroid * [1.0, 0.0, 1.0]
+    foot *= major / np.linalg.norm(foot, axis=1)[:, None]
+    flip = np.einsum("ij,ij->i", face_normals(vertices, faces), centroid - foot) < 0
+    faces[flip] = faces[flip, ::-1]
+    uvs = np.stack([aa / (2 * np.pi), bb / (2 * np.pi)], axis=-1).reshape(-1, 2)
+    mesh = Mesh(vertices, faces, uvs, f"torus(major={major:g}, minor={minor:g}, segments={segments}, sides={sides})")
+    return reorder(mesh, np.arange(len(vertices)))
+
+
 # ---------------------------------------------------------------- OBJ files
 
 
@@ -258,8 +294,9 @@ STANDARD_MESHES = {
     "flag.obj": lambda: quad_grid(columns=40, rows=20, width=1.0, height=0.5, vertical=True, jitter=0.001, seed=1),
     "sheet.obj": lambda: quad_grid(columns=32, rows=32, width=0.8, height=0.8, vertical=False),
     "delaunay_square.obj": lambda: delaunay_square(count=2500, side=1.0, spacing=0.014, seed=20),
+    "torus.obj": lambda: torus(major=0.25, minor=0.08, segments=64, sides=24),
 }
-"""the meshes the standard scenes use, by file name, and how each is made"""
+"""the meshes the standard scenes use (cloths, and the torus a collider), by file name, and how each is made"""
 
 
 def meshes_dir() -> Path:
