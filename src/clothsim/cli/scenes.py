@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 
 def add_parser(sub) -> None:
@@ -24,7 +25,10 @@ def describe(scene) -> str:
         if len({c.ks for c in cloths}) > 1:
             texts = [f"{t}, ks {c.ks:g}" for t, c in zip(texts, cloths)]
         head, sep, verb = f"{len(cloths)} cloths: " + "; ".join(texts), "; ", "fall"
-    colliders = [_count(len(scene.spheres), "sphere"), _count(len(scene.planes), "plane")]
+    moving = [c for c in [*scene.spheres, *scene.planes, *scene.boxes, *scene.mesh_colliders]
+              if getattr(c, "animation", None) is not None]
+    colliders = [_count(len(scene.spheres), "sphere"), _count(len(scene.planes), "plane"),
+                 _count(len(scene.boxes), "box"), _count(len(scene.mesh_colliders), "mesh collider")]
     colliders = [c for c in colliders if c]
     if colliders and all(_pinned_count(c) for c in cloths):
         tail = ("hangs" if len(cloths) == 1 else "hang") + " above " + " and ".join(colliders)
@@ -35,6 +39,13 @@ def describe(scene) -> str:
     else:
         tail = ""
     text = head + sep + tail if tail else head
+    handles = sum(len(c.handles) for c in cloths)
+    if handles:
+        text += f", {_count(handles, 'handle')} moving it"
+    if moving:
+        text += f", {_count(len(moving), 'collider')} moving"
+    if scene.wind is not None:
+        text += f", wind {math.hypot(*scene.wind.velocity):g} m/s"
     if not scene.simulation.self_collision:
         text += ", no self-collision"
     return text
