@@ -24,6 +24,11 @@ from .tangents import UvTangents
 
 SPHERE_DRAW_SCALE = 0.96
 
+DRAW_INSET = 0.003
+"""[m]: boxes and closed mesh colliders are drawn this much inside their surface,
+as spheres are drawn smaller: cloth resting on one lies within its margin of
+the surface, and would be pierced by it between its points"""
+
 
 def spring_lines(sim: Simulation) -> np.ndarray:
     """Index pairs of the springs that act (their kind enabled in their own
@@ -197,9 +202,20 @@ def collider_meshes(sim: Simulation, sphere_res: tuple[int, int] = (40, 40)) -> 
     # sphere is not pierced by it between its vertices
     meshes = [sphere_mesh(s.origin, SPHERE_DRAW_SCALE * s.radius, *sphere_res) for s in sim.spheres]
     meshes += [plane_mesh(p.point, p.normal, center, size) for p in sim.planes]
-    meshes += [box_mesh(b.center, b.size, rotation_matrices(b.rotate)) for b in sim.boxes]
-    meshes += [triangle_mesh(m.vertices, m.triangles) for m in sim.mesh_colliders]
+    meshes += [box_mesh(b.center, np.maximum(np.asarray(b.size) - 2 * DRAW_INSET, 0.5 * np.asarray(b.size)),
+                        rotation_matrices(b.rotate)) for b in sim.boxes]
+    meshes += [triangle_mesh(_inset(m), m.triangles) for m in sim.mesh_colliders]
     return meshes
+
+
+def _inset(collider) -> np.ndarray:
+    """a closed mesh collider's vertices moved DRAW_INSET inward along their normals;
+    an open one's as they are (it is two-sided: cloth may rest on either side)"""
+    if not collider.closed:
+        return collider.vertices
+    from ..mesh import compute_normals
+
+    return collider.vertices - DRAW_INSET * compute_normals(collider.vertices, collider.triangles)
 
 
 class SimulationView:
