@@ -150,8 +150,9 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     """The vector pass of :func:`_boxes_pass` for the box of ``row`` over points
     ``lo:lo + len(marked)``: a point that went in through the one face its
     reference position was outside of (a cloth resting on a box crosses its
-    face every substep) is placed; ``marked`` is set for the others whose
-    segment's bounding box meets the box. ``aligned``: the box's axes are the
+    face every substep) is placed; ``marked`` is set for the others that end
+    inside, and, where some point moved farther than the box's thinnest side,
+    for those whose segment's bounding box meets the box (:func:`_mark_through`). ``aligned``: the box's axes are the
     world's, and the loop skips the turns into and out of its frame."""
     n = marked.shape[0]
     x, y, z = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
@@ -164,6 +165,10 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     keep = 1.0 - row[15] if friction else 0.0
     margin = row[16]
     a = carry_of(row, COLUMNS)
+    # a point that passed right through ends outside: only a move longer than the
+    # box's thinnest side can, so the points are looked at again only after one
+    thinnest2 = 4.0 * min(hu, min(hv, hw)) ** 2
+    far = 0
     for p in range(n):
         mx, my, mz = rx[p], ry[p], rz[p]
         if carry:
@@ -194,8 +199,39 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
         x[p] = nx if simple else x[p]
         y[p] = ny if simple else y[p]
         z[p] = nz if simple else z[p]
-        marked[p] = ((min(u0, u1) < hu) & (max(u0, u1) > -hu) & (min(v0, v1) < hv) & (max(v0, v1) > -hv)
-                     & (min(w0, w1) < hw) & (max(w0, w1) > -hw) & (fr[p] != 0.0) & (not simple))
+        # the rest that end inside: near an edge or corner, or inside from before
+        marked[p] = inside1 & (fr[p] != 0.0) & (simple ^ True)
+        du, dv, dw = u1 - u0, v1 - v0, w1 - w0
+        far += np.int64(du * du + dv * dv + dw * dw >= thinnest2)
+    if far > 0:
+        _mark_through(P, R, free, row, lo, marked, carry)
+
+
+@njit(**KERNEL_OPTIONS)
+def _mark_through(P, R, free, row, lo, marked, carry):
+    """Also mark, for the box of ``row``, every free point whose segment's bounding
+    box in the box's frame meets the box: those that may have passed through it
+    in one substep (a fast point, a thin box)."""
+    n = marked.shape[0]
+    cx, cy, cz = row[0], row[1], row[2]
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
+                                                    row[9], row[10], row[11])
+    hu, hv, hw = row[12], row[13], row[14]
+    a = carry_of(row, COLUMNS)
+    for q in range(n):
+        p = lo + q
+        mx, my, mz = R[0, p], R[1, p], R[2, p]
+        if carry:
+            mx, my, mz = carry_point(a, mx, my, mz)
+        dx, dy, dz = P[0, p] - cx, P[1, p] - cy, P[2, p] - cz
+        ex, ey, ez = mx - cx, my - cy, mz - cz
+        u1, u0 = r00 * dx + r10 * dy + r20 * dz, r00 * ex + r10 * ey + r20 * ez
+        v1, v0 = r01 * dx + r11 * dy + r21 * dz, r01 * ex + r11 * ey + r21 * ez
+        w1, w0 = r02 * dx + r12 * dy + r22 * dz, r02 * ex + r12 * ey + r22 * ez
+        inside1 = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw)
+        through = ((min(u0, u1) < hu) & (max(u0, u1) > -hu) & (min(v0, v1) < hv) & (max(v0, v1) > -hv)
+                   & (min(w0, w1) < hw) & (max(w0, w1) > -hw) & (free[p] != 0.0) & (inside1 ^ True))
+        marked[q] = marked[q] | through
 
 
 @njit(**KERNEL_OPTIONS)

@@ -126,15 +126,15 @@ def moving_rows(R, o, carry, points=(), directions=(), frames=(), fixed=()) -> n
 
 
 @njit(cache=True, boundscheck=False)
-def _rows(R, o, carry, points, directions, frames, fixed):
+def _rows(R, o, carry, spots, directions, frames, fixed):
     T = R.shape[0]
-    C = 3 * points.shape[0] + 3 * directions.shape[0] + 9 * frames.shape[0] + fixed.shape[0] + CARRY
+    C = 3 * spots.shape[0] + 3 * directions.shape[0] + 9 * frames.shape[0] + fixed.shape[0] + CARRY
     out = np.empty((T, C))
     for t in range(T):
         c = 0
-        for k in range(points.shape[0]):
+        for k in range(spots.shape[0]):
             for i in range(3):
-                out[t, c + i] = o[t, i] + R[t, i, 0] * points[k, 0] + R[t, i, 1] * points[k, 1] + R[t, i, 2] * points[k, 2]
+                out[t, c + i] = o[t, i] + R[t, i, 0] * spots[k, 0] + R[t, i, 1] * spots[k, 1] + R[t, i, 2] * spots[k, 2]
             c += 3
         for k in range(directions.shape[0]):
             for i in range(3):
