@@ -272,6 +272,42 @@ def test_random_segments_never_end_inside_a_closed_mesh(ball):
     np.testing.assert_allclose(h, np.minimum(MARGIN, h0[goes]), atol=1e-9)
 
 
+def winding(tris, points):
+    """(N,) the winding number of a closed mesh wound outward about each point (1 inside,
+    0 outside), from the solid angles of its triangles (numpy, apart from the kernels)"""
+    a = tris[None, :, 0:3] - points[:, None]
+    b = tris[None, :, 3:6] - points[:, None]
+    c = tris[None, :, 6:9] - points[:, None]
+    la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
+    det = (a * np.cross(b, c)).sum(axis=2)
+    den = la * lb * lc + (a * b).sum(axis=2) * lc + (b * c).sum(axis=2) * la + (c * a).sum(axis=2) * lb
+    return 2.0 * np.arctan2(det, den).sum(axis=1) / (4.0 * np.pi)
+
+
+def test_no_point_ends_inside_a_torus():
+    """a solid that is not convex, points starting inside it and out, short moves (the
+    rescue's shortcut for points off every plane of their cell) and long ones: none
+    ends inside, by the winding number"""
+    torus = trimesh.creation.torus(major_radius=0.5, minor_radius=0.15, major_sections=48, minor_sections=24)
+    ctl = control([shape(torus.vertices, torus.faces, True)], static(friction=0.3))
+    tris = ctl.mesh_tris
+    rng = np.random.default_rng(4)
+    n = 3000
+    angle = rng.uniform(0, 2 * np.pi, n)
+    ring = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1) * 0.5
+    start = ring + rng.normal(size=(n, 3)) * rng.choice([0.05, 0.15, 0.3], size=(n, 1))
+    end = start + rng.normal(size=start.shape) * rng.choice([0.002, 0.01, 0.1], size=(n, 1))
+    before = winding(tris, start)
+    assert (before > 0.5).sum() > 300 and (before < 0.5).sum() > 300
+    P = run(ctl, planes(end), planes(start))
+    assert np.all(winding(tris, P.T) < 0.5)
+    # and the points that start and end outside without crossing are left alone
+    _, t = brute_first_hit(tris, start, end, 1e-6, entry_only=True)
+    calm = (before < 0.5) & (winding(tris, end) < 0.5) & (t < 0)
+    assert calm.sum() > 300
+    np.testing.assert_array_equal(P.T[calm], end[calm])
+
+
 def test_a_point_passing_through_a_solid_stops_at_its_near_side(ball):
     _, ctl = ball
     P = run(ctl, planes([[0.01, 0.02, -0.9]]), planes([[0.0, 0.0, 0.9]]))
@@ -390,6 +426,7 @@ t.test_nan_inf_and_degenerate_triangles_do_not_crash()
 t.test_random_segments_never_end_inside_a_closed_mesh(t.ball.__wrapped__())
 t.test_points_inside_a_closed_mesh_are_pushed_out(t.ball.__wrapped__())
 t.test_a_fast_point_does_not_cross_a_thin_open_mesh()
+t.test_no_point_ends_inside_a_torus()
 print("ok")
 """
 
