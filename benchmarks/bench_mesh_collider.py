@@ -7,7 +7,14 @@ through it; beyond the ball's rim the cloth hangs down past its side. The
 ball is closed and static. Prints one JSON line: the CPU, the microseconds
 of one :func:`collide_meshes` call over all points (best of several repeats of
 many calls, each on fresh copies of the positions) and the triangles tested
-per point. ``--pack`` also times :func:`pack_meshes`.
+per point, with the time :func:`pack_meshes` takes.
+
+Beside it, in the same rounds (one collider timing, then one cloth timing, so
+a slow spell of the machine falls on both), what a 50x50 grid cloth with no
+collider and no self-collision costs per substep (``cloth_substep_us``, the
+whole substep on one thread) and the part of it its springs take
+(``springs_us``: that run less the same run with every spring kind off);
+each the best of the rounds.
 """
 
 from __future__ import annotations
@@ -25,7 +32,12 @@ import trimesh
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import emit, machine  # noqa: E402
 
+import clothsim  # noqa: E402
+from clothsim import Simulation  # noqa: E402
 from clothsim.solver.colliders.mesh import collide_meshes, count_tests, pack_meshes, pose_rows  # noqa: E402
+
+CLOTH = Path(clothsim.__file__).resolve().parent / "scenes" / "pinned2.json"
+"""a 50x50 cloth hanging from two corners, no collider"""
 
 
 class Ctl(NamedTuple):
@@ -50,11 +62,31 @@ def draped(n=50, side=1.5, radius=0.5, gap=0.004, drop=0.006, seed=0):
     return np.ascontiguousarray(L), np.ascontiguousarray(P)
 
 
+def bare_cloth(springs: bool) -> Simulation:
+    """the 50x50 cloth of CLOTH on one thread, self-collision off (springs off too
+    where ``springs`` is false), stepped once so that it is compiled"""
+    sim = Simulation.from_file(CLOTH, threads=1)
+    sim.params.self_collision = False
+    if not springs:
+        sim.params.enable_structural = sim.params.enable_shearing = sim.params.enable_bending = False
+    sim.step()
+    return sim
+
+
+def substep_us(sim: Simulation, frames: int) -> float:
+    """microseconds per substep over ``frames`` frames"""
+    t = time.perf_counter()
+    for _ in range(frames):
+        sim.step()
+    return (time.perf_counter() - t) / (frames * sim.params.simulation_steps) * 1e6
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subdivisions", type=int, default=5)
     ap.add_argument("--calls", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--frames", type=int, default=4, help="frames of the bare cloth per round")
     args = ap.parse_args()
     ball = trimesh.creation.icosphere(subdivisions=args.subdivisions, radius=0.5)
     shape = SimpleNamespace(vertices=ball.vertices, triangles=ball.faces, closed=True)
@@ -69,13 +101,16 @@ def main() -> None:
     lo, hi, s = np.int64(0), np.int64(P0.shape[1]), np.int64(0)
     copies = [P0.copy() for _ in range(args.calls)]
     collide_meshes(copies[0], L, free, ctl, lo, hi, s)  # compiles
-    best = np.inf
+    cloth, bare = bare_cloth(True), bare_cloth(False)
+    best, cloth_us, bare_us = np.inf, np.inf, np.inf
     for _ in range(args.repeats):
         copies = [P0.copy() for _ in range(args.calls)]
         t = time.perf_counter()
         for P in copies:
             collide_meshes(P, L, free, ctl, lo, hi, s)
         best = min(best, (time.perf_counter() - t) / args.calls)
+        cloth_us = min(cloth_us, substep_us(cloth, args.frames))
+        bare_us = min(bare_us, substep_us(bare, args.frames))
     tested = np.zeros(P0.shape[1], dtype=np.int64)
     count_tests(P0, L, free, ctl, lo, hi, s, tested)
     moved = int(np.any(copies[0] != P0, axis=0).sum())
@@ -83,7 +118,8 @@ def main() -> None:
     emit({"bench": "mesh_collider", **machine(), "points": int(P0.shape[1]), "triangles": int(len(ball.faces)),
           "grid_dims": [int(v) for v in g[5:8]], "cell_m": round(float(g[3]), 5),
           "list_entries": int(packed["mesh_cells"][-1]), "pack_ms": round(pack_s * 1e3, 2),
-          "us_per_substep": round(best * 1e6, 2), "tested_mean": round(float(tested.mean()), 2),
+          "us_per_substep": round(best * 1e6, 2), "cloth_substep_us": round(cloth_us, 2),
+          "springs_us": round(cloth_us - bare_us, 2), "tested_mean": round(float(tested.mean()), 2),
           "tested_median": float(np.median(tested)), "tested_max": int(tested.max()), "points_moved": moved})
 
 

@@ -102,6 +102,18 @@ def brute_first_hit(tris, q0, q1, tol, entry_only):
     return best, np.where(np.isfinite(best), t, -1)
 
 
+def put_off_reference(tris, t, q0, q1, margin):
+    """(N, 3) where the placement rule puts points that moved q0 -> q1 (N, 3) across
+    triangles t (N,): q1 put on the triangle's plane, then min(margin, distance of q0
+    from the plane) off it on q0's side (numpy, written apart from the kernel)"""
+    a, b, c = tris[t, 0:3], tris[t, 3:6], tris[t, 6:9]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    h0 = ((q0 - a) * n).sum(axis=1)
+    h1 = ((q1 - a) * n).sum(axis=1)
+    return q1 - h1[:, None] * n + (np.sign(h0) * np.minimum(margin, np.abs(h0)))[:, None] * n
+
+
 # --- open meshes ------------------------------------------------------------------
 
 def test_a_falling_point_stops_on_an_open_square_margin_above():
@@ -205,9 +217,9 @@ def test_settle_puts_back_a_point_a_later_pass_pushed_through():
     Q = planes([[0.1, 0.1, 0.2 + MARGIN], [0.3, 0.3, 0.25]])
     P = planes([[0.3, 0.1, 0.19], [0.35, 0.3, 0.24]])
     settle_meshes(P, Q, np.ones(2), ctl, np.int64(0), np.int64(2), np.int64(0))
-    # the crossing of the first at parameter MARGIN / (MARGIN + 0.01), no friction
-    s = MARGIN / (MARGIN + 0.01)
-    np.testing.assert_allclose(P[:, 0], [0.1 + 0.2 * s, 0.1, 0.2 + MARGIN], atol=1e-12)
+    # the first crosses: its position put on the plane, margin off on Q's side (Q was
+    # margin off), no friction, so it keeps its move along the plane
+    np.testing.assert_allclose(P[:, 0], [0.3, 0.1, 0.2 + MARGIN], atol=1e-12)
     np.testing.assert_allclose(P[:, 1], [0.35, 0.3, 0.24])
 
 
@@ -222,7 +234,9 @@ def ball():
 def test_random_segments_never_end_inside_a_closed_mesh(ball):
     """starting outside, none ends inside (exact: the icosphere is convex); those that
     cross nothing, by a brute-force test of every triangle, are not moved, and those
-    that clearly cross end at the brute force's first crossing, margin off"""
+    that clearly cross end where the placement rule puts them for the brute force's
+    first crossing (or stay at their start where the path to that place clearly
+    crosses another triangle)"""
     shapes, ctl = ball
     tris = ctl.mesh_tris
     rng = np.random.default_rng(1)
@@ -241,11 +255,57 @@ def test_random_segments_never_end_inside_a_closed_mesh(ball):
     assert missed.sum() > 100 and (~missed).sum() > 100
     np.testing.assert_array_equal(out[missed], end[missed])
     clear = np.isfinite(narrow)
+    placed = put_off_reference(tris, t[clear], start[clear], end[clear], MARGIN)
+    # a crease: the path to the placed point crosses the mesh again, and the point stays
+    again_wide, _ = brute_first_hit(tris, start[clear], placed, 1e-6, entry_only=True)
+    again_narrow, _ = brute_first_hit(tris, start[clear], placed, -1e-6, entry_only=True)
+    stays, goes = np.isfinite(again_narrow), ~np.isfinite(again_wide)
+    assert goes.sum() > 100
+    np.testing.assert_allclose(out[clear][goes], placed[goes], atol=1e-9)
+    np.testing.assert_array_equal(out[clear][stays], start[clear][stays])
+    # placed on the crossed triangle's plane, as near as it came from or margin off
     a, b, c = tris[t[clear], 0:3], tris[t[clear], 3:6], tris[t[clear], 6:9]
-    normal = np.cross(b - a, c - a)
-    normal /= np.linalg.norm(normal, axis=1)[:, None]
-    want = start[clear] + narrow[clear, None] * (end[clear] - start[clear]) + MARGIN * normal
-    np.testing.assert_allclose(out[clear], want, atol=1e-9)
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    h0 = ((start[clear] - a) * n).sum(axis=1)
+    h = ((out[clear][goes] - a[goes]) * n[goes]).sum(axis=1)
+    np.testing.assert_allclose(h, np.minimum(MARGIN, h0[goes]), atol=1e-9)
+
+
+def winding(tris, points):
+    """(N,) the winding number of a closed mesh wound outward about each point (1 inside,
+    0 outside), from the solid angles of its triangles (numpy, apart from the kernels)"""
+    a = tris[None, :, 0:3] - points[:, None]
+    b = tris[None, :, 3:6] - points[:, None]
+    c = tris[None, :, 6:9] - points[:, None]
+    la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
+    det = (a * np.cross(b, c)).sum(axis=2)
+    den = la * lb * lc + (a * b).sum(axis=2) * lc + (b * c).sum(axis=2) * la + (c * a).sum(axis=2) * lb
+    return 2.0 * np.arctan2(det, den).sum(axis=1) / (4.0 * np.pi)
+
+
+def test_no_point_ends_inside_a_torus():
+    """a solid that is not convex, points starting inside it and out, short moves (the
+    rescue's shortcut for points off every plane of their cell) and long ones: none
+    ends inside, by the winding number"""
+    torus = trimesh.creation.torus(major_radius=0.5, minor_radius=0.15, major_sections=48, minor_sections=24)
+    ctl = control([shape(torus.vertices, torus.faces, True)], static(friction=0.3))
+    tris = ctl.mesh_tris
+    rng = np.random.default_rng(4)
+    n = 3000
+    angle = rng.uniform(0, 2 * np.pi, n)
+    ring = np.stack([np.cos(angle), np.sin(angle), np.zeros(n)], axis=1) * 0.5
+    start = ring + rng.normal(size=(n, 3)) * rng.choice([0.05, 0.15, 0.3], size=(n, 1))
+    end = start + rng.normal(size=start.shape) * rng.choice([0.002, 0.01, 0.1], size=(n, 1))
+    before = winding(tris, start)
+    assert (before > 0.5).sum() > 300 and (before < 0.5).sum() > 300
+    P = run(ctl, planes(end), planes(start))
+    assert np.all(winding(tris, P.T) < 0.5)
+    # and the points that start and end outside without crossing are left alone
+    _, t = brute_first_hit(tris, start, end, 1e-6, entry_only=True)
+    calm = (before < 0.5) & (winding(tris, end) < 0.5) & (t < 0)
+    assert calm.sum() > 300
+    np.testing.assert_array_equal(P.T[calm], end[calm])
 
 
 def test_a_point_passing_through_a_solid_stops_at_its_near_side(ball):
@@ -281,8 +341,22 @@ def test_an_open_mesh_counts_crossings_both_ways():
     open_ball = [sphere(radius=0.5, subdivisions=2)]
     open_ball[0].closed = False
     ctl = control(open_ball, static())
+    # out through a face and in through one: each is put on the face's plane, margin off
+    # on the side it came from
+    L = planes([[0.03, 0.05, 0.3], [0.05, -0.03, 0.8]])
+    P0 = planes([[0.02, 0.04, 0.7], [0.04, -0.02, 0.2]])
+    P = run(ctl, P0.copy(), L)
+    _, t = brute_first_hit(ctl.mesh_tris, L.T, P0.T, -1e-6, entry_only=False)
+    assert np.all(t >= 0)
+    np.testing.assert_allclose(P.T, put_off_reference(ctl.mesh_tris, t, L.T, P0.T, MARGIN), atol=1e-12)
+    a, b, c = ctl.mesh_tris[t, 0:3], ctl.mesh_tris[t, 3:6], ctl.mesh_tris[t, 6:9]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    h = ((P.T - a) * n).sum(axis=1)  # the faces are wound outward
+    np.testing.assert_allclose(h, [-MARGIN, MARGIN], atol=1e-12)  # on the side each came from
+    # out through a corner shared by several faces (the pole): it does not get out
     P = run(ctl, planes([[0.0, 0.0, 0.7]]), planes([[0.0, 0.0, 0.3]]))
-    assert 0.4 < P[2, 0] < 0.5  # kept inside the two-sided surface
+    assert np.linalg.norm(P[:, 0]) < 0.5
 
 
 def test_a_mesh_wound_inward_is_turned_outward():
@@ -352,6 +426,7 @@ t.test_nan_inf_and_degenerate_triangles_do_not_crash()
 t.test_random_segments_never_end_inside_a_closed_mesh(t.ball.__wrapped__())
 t.test_points_inside_a_closed_mesh_are_pushed_out(t.ball.__wrapped__())
 t.test_a_fast_point_does_not_cross_a_thin_open_mesh()
+t.test_no_point_ends_inside_a_torus()
 print("ok")
 """
 

@@ -47,8 +47,8 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS
-from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, UNKNOWN,
-                       cell_coord, pack_meshes)
+from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, T_NORMAL, T_OFFSET,
+                       UNKNOWN, cell_coord, pack_meshes)
 
 POSE_FIELDS = 26
 """a pose row: R_now (9), o_now (3), R_before (9), o_before (3), friction, margin"""
@@ -89,52 +89,85 @@ def pack_poses(colliders, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -
     return stack_slots(rows)
 
 
+# --- a mesh's grid row, read once ----------------------------------------------------
+
+PLANE_SLACK = 1e-6
+"""a triangle's plane is taken to separate two points only where both are more than
+this many cell sizes (plus rounding of their coordinates) off it on one side; the
+exact test decides the rest"""
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _grid_scalars(g):
+    """The fields of grid row ``g`` that the searches read, read once per mesh:
+    (ox, oy, oz, hix, hiy, hiz, h, 1/h, nx, ny, nz, first cell, first inside flag,
+    the plane slack [m])."""
+    big = max(abs(g[G_ORIGIN]), abs(g[G_ORIGIN + 1]), abs(g[G_ORIGIN + 2]),
+              abs(g[G_HI]), abs(g[G_HI + 1]), abs(g[G_HI + 2]))
+    return (g[G_ORIGIN], g[G_ORIGIN + 1], g[G_ORIGIN + 2], g[G_HI], g[G_HI + 1], g[G_HI + 2], g[G_H],
+            g[G_INV_H], g[G_DIMS], g[G_DIMS + 1], g[G_DIMS + 2], g[G_CELL0], g[G_STATUS0],
+            PLANE_SLACK * g[G_H] + 1e-12 * big)
+
+
+WALK_REACH = 1e-6
+"""how far beyond a segment's box (in units of the mesh's size plus a cell) the
+crossing search looks: a crossing lies in the triangle (its bounds widened by
+BARY_TOL of its size) and on the segment, so in a cell both boxes overlap; this
+covers the widening and the rounding of the walk. Much less than a margin: the
+search reads the cells the segment passes, not their neighbours."""
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _reach(g):
+    """the crossing search's reach [m] for grid row ``g`` (see WALK_REACH)"""
+    extent = max(g[G_HI] - g[G_ORIGIN], g[G_HI + 1] - g[G_ORIGIN + 1], g[G_HI + 2] - g[G_ORIGIN + 2])
+    return WALK_REACH * (max(extent, 0.0) + g[G_H])
+
+
 # --- one triangle ------------------------------------------------------------------
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _hit(tris, t, q, d, tol, entry_only):
-    """Where the segment q -> q + d crosses triangle ``t`` (Moller-Trumbore):
+def _hit(tris, t, x0, y0, z0, dx, dy, dz, tol, entry_only, slack):
+    """Where the segment (x0, y0, z0) -> + (dx, dy, dz) crosses triangle ``t``:
     (parameter s in [0, 1], or inf for none; the smallest barycentric coordinate;
-    whether the segment enters, moving against the normal (b-a) x (c-a)). Barycentric
-    bounds widened by ``tol``; a zero-area triangle, a segment in its plane or a
-    non-entering crossing when ``entry_only`` is none."""
+    the signed distance of the segment's end from the plane [m]). First the plane: a
+    segment whose ends are both more than ``slack`` [m] off it on one side (for
+    ``entry_only``, one that starts inside it or ends outside) is rejected at the
+    cost of two dot products. Then Moller-Trumbore, its barycentric bounds widened
+    by ``tol``; a zero-area triangle, a segment in its plane or a non-entering
+    crossing when ``entry_only`` is none."""
+    pnx, pny, pnz = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2]
+    h0 = pnx * x0 + pny * y0 + pnz * z0 - tris[t, T_OFFSET]
+    h1 = h0 + (pnx * dx + pny * dy + pnz * dz)
+    if entry_only:
+        if h0 < -slack or h1 > slack:
+            return np.inf, 0.0, h1
+    elif (h0 > slack and h1 > slack) or (h0 < -slack and h1 < -slack):
+        return np.inf, 0.0, h1
     ax, ay, az = tris[t, 0], tris[t, 1], tris[t, 2]
     e1x, e1y, e1z = tris[t, 3] - ax, tris[t, 4] - ay, tris[t, 5] - az
     e2x, e2y, e2z = tris[t, 6] - ax, tris[t, 7] - ay, tris[t, 8] - az
-    dx, dy, dz = d
     px = dy * e2z - dz * e2y
     py = dz * e2x - dx * e2z
     pz = dx * e2y - dy * e2x
     det = e1x * px + e1y * py + e1z * pz  # -d . ((b-a) x (c-a)): > 0 enters
     if not (det > 0.0 if entry_only else abs(det) > 0.0):
-        return np.inf, 0.0, False
+        return np.inf, 0.0, h1
     inv = 1.0 / det
-    tx, ty, tz = q[0] - ax, q[1] - ay, q[2] - az
+    tx, ty, tz = x0 - ax, y0 - ay, z0 - az
     u = (tx * px + ty * py + tz * pz) * inv
     if not (u >= -tol and u <= 1.0 + tol):
-        return np.inf, 0.0, False
+        return np.inf, 0.0, h1
     qx = ty * e1z - tz * e1y
     qy = tz * e1x - tx * e1z
     qz = tx * e1y - ty * e1x
     v = (dx * qx + dy * qy + dz * qz) * inv
     if not (v >= -tol and u + v <= 1.0 + tol):
-        return np.inf, 0.0, False
+        return np.inf, 0.0, h1
     s = (e2x * qx + e2y * qy + e2z * qz) * inv
     if not (s >= 0.0 and s <= 1.0):
-        return np.inf, 0.0, False
-    return s, min(u, v, 1.0 - u - v), det > 0.0
-
-
-@njit(**EXACT_OPTIONS)
-def _unit_normal(tris, t):
-    """The unit normal (b-a) x (c-a) / |...| of triangle ``t`` (a crossed one: not zero-area)."""
-    e1x, e1y, e1z = tris[t, 3] - tris[t, 0], tris[t, 4] - tris[t, 1], tris[t, 5] - tris[t, 2]
-    e2x, e2y, e2z = tris[t, 6] - tris[t, 0], tris[t, 7] - tris[t, 1], tris[t, 8] - tris[t, 2]
-    nx = e1y * e2z - e1z * e2y
-    ny = e1z * e2x - e1x * e2z
-    nz = e1x * e2y - e1y * e2x
-    w = 1.0 / np.sqrt(nx * nx + ny * ny + nz * nz)
-    return nx * w, ny * w, nz * w
+        return np.inf, 0.0, h1
+    return s, min(u, v, 1.0 - u - v), h1
 
 
 @njit(**EXACT_OPTIONS)
@@ -178,22 +211,26 @@ def _closest(tris, t, p):
 
 # --- one mesh ------------------------------------------------------------------
 
-@njit(**EXACT_OPTIONS)
-def _first_crossing(tris, g, cells, items, q0, q1, reach, entry_only):
+@njit(**EXACT_OPTIONS, inline="always")
+def _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, entry_only):
     """The first crossing of the segment q0 -> q1 (rest frame, finite) with the mesh
-    of grid row ``g``: (segment parameter, triangle or -1, triangles tested).
+    of grid scalars ``G`` (:func:`_grid_scalars`): (segment parameter, triangle or -1,
+    triangles tried, whether q1 is more than the slack off every tried triangle's
+    plane on its outer side).
 
     The segment is clipped to the mesh's box grown by ``reach`` [m] and walked in
-    pieces at most a cell long; each piece tests the triangles of the cells its box,
+    pieces at most a cell long; each piece tries the triangles of the cells its box,
     grown by ``reach``, overlaps, and the walk stops at the first piece that holds
-    the best crossing so far."""
-    x0, y0, z0 = q0
-    x1, y1, z1 = q1
-    lox, loy, loz = g[G_ORIGIN] - reach, g[G_ORIGIN + 1] - reach, g[G_ORIGIN + 2] - reach
-    hix, hiy, hiz = g[G_HI] + reach, g[G_HI + 1] + reach, g[G_HI + 2] + reach
+    the best crossing so far. Without a crossing the walk has tried every triangle
+    of q1's cell (or q1 is outside the mesh's box). Inlined in the kernels: no call,
+    no reference counts."""
+    ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, c0f, _, slack = G
+    lox, loy, loz = ox - reach, oy - reach, oz - reach
+    hix, hiy, hiz = hx + reach, hy + reach, hz + reach
+    best, best_t, tested, outer = np.inf, -1, 0, True
     if (max(x0, x1) < lox or min(x0, x1) > hix or max(y0, y1) < loy or min(y0, y1) > hiy
             or max(z0, z1) < loz or min(z0, z1) > hiz):
-        return np.inf, -1, 0
+        return best, best_t, tested, outer
     dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
     ta, tb = 0.0, 1.0
     if dx != 0.0:
@@ -206,16 +243,13 @@ def _first_crossing(tris, g, cells, items, q0, q1, reach, entry_only):
         a, b = (loz - z0) / dz, (hiz - z0) / dz
         ta, tb = max(ta, min(a, b)), min(tb, max(a, b))
     if not ta <= tb:
-        return np.inf, -1, 0
-    ox, oy, oz, inv = g[G_ORIGIN], g[G_ORIGIN + 1], g[G_ORIGIN + 2], g[G_INV_H]
-    nx, ny, nz = g[G_DIMS], g[G_DIMS + 1], g[G_DIMS + 2]
+        return best, best_t, tested, outer
+    slack = slack + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
     inx, iny = int(nx), int(ny)
-    c0 = int(g[G_CELL0])
+    c0 = int(c0f)
     cells_along = (tb - ta) * np.sqrt(dx * dx + dy * dy + dz * dz) * inv
     pieces = int(min(cells_along, nx + ny + nz)) + 1
     step = (tb - ta) / pieces
-    d = (dx, dy, dz)
-    best, best_t, tested = np.inf, -1, 0
     for m in range(pieces):
         sa = ta + m * step
         sb = tb if m == pieces - 1 else sa + step
@@ -233,57 +267,79 @@ def _first_crossing(tris, g, cells, items, q0, q1, reach, entry_only):
                 for j in range(cells[row + ix0], cells[row + ix1 + 1]):
                     t = items[j]
                     tested += 1
-                    s, _, _ = _hit(tris, t, q0, d, BARY_TOL, entry_only)
+                    s, _, h1 = _hit(tris, t, x0, y0, z0, dx, dy, dz, BARY_TOL, entry_only, slack)
+                    outer = outer and h1 > slack
                     if s < best:
                         best, best_t = s, t
         if best <= sb:
             break
-    return best, best_t, tested
+    return best, best_t, tested, outer
 
 
-@njit(**EXACT_OPTIONS)
-def _put_off(tris, t, q0, q1, s, margin):
-    """Where a point whose move q0 -> q1 crossed triangle t (at parameter s) goes:
-    q1 put on the triangle's plane, as a plane collider puts it, then ``margin`` [m]
-    off it on the side q0 came from, or only as far as q0 was if that is nearer (a
-    point resting within the margin must not bounce off it). Friction alone
-    (the caller's) takes tangential motion away, not the segment."""
-    nx, ny, nz = _unit_normal(tris, t)
-    dx, dy, dz = q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]
-    side = 1.0 if dx * nx + dy * ny + dz * nz < 0.0 else -1.0
-    d0 = abs((q0[0] - tris[t, 0]) * nx + (q0[1] - tris[t, 1]) * ny + (q0[2] - tris[t, 2]) * nz)
-    d1 = (q1[0] - tris[t, 0]) * nx + (q1[1] - tris[t, 1]) * ny + (q1[2] - tris[t, 2]) * nz
+@njit(**EXACT_OPTIONS, inline="always")
+def _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin):
+    """Where a point whose move q0 -> q1 crossed triangle t goes: q1 put on the
+    triangle's plane, as a plane collider puts it, then ``margin`` [m] off it on the
+    side q0 came from, or only as far as q0 was if that is nearer (a point resting
+    within the margin must not bounce off it). Friction alone (the caller's) takes
+    tangential motion away, not the segment."""
+    nx, ny, nz, w = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET]
+    side = 1.0 if (x1 - x0) * nx + (y1 - y0) * ny + (z1 - z0) * nz < 0.0 else -1.0
+    d0 = abs(x0 * nx + y0 * ny + z0 * nz - w)
+    d1 = x1 * nx + y1 * ny + z1 * nz - w
     off = side * min(margin, d0) - d1
-    return q1[0] + off * nx, q1[1] + off * ny, q1[2] + off * nz
+    return x1 + off * nx, y1 + off * ny, z1 + off * nz
 
 
-@njit(**EXACT_OPTIONS)
-def _inside(tris, g, cells, items, q):
-    """Whether q (rest frame, finite) is inside the closed mesh of grid row ``g``: its
-    cell centre's inside flag, flipped by each crossing of the segment q -> centre.
-    False outside the mesh's box, for a centre on the surface, and where the segment
-    passes within rounding of an edge, a corner, q or the centre."""
-    x, y, z = q
-    if (x < g[G_ORIGIN] or x > g[G_HI] or y < g[G_ORIGIN + 1] or y > g[G_HI + 1]
-            or z < g[G_ORIGIN + 2] or z > g[G_HI + 2]):
+@njit(**EXACT_OPTIONS, inline="always")
+def _inside(tris, cells, items, G, x, y, z):
+    """Whether (x, y, z) (rest frame, finite) is inside the closed mesh of grid scalars
+    ``G``: its cell's inside flag, which alone decides a cell without triangles,
+    flipped by each crossing of the segment from the point to the cell's centre
+    (each triangle's plane first). False outside the mesh's box, for a centre on the
+    surface, and where the segment passes within rounding of an edge, a corner, the
+    point or the centre."""
+    ox, oy, oz, hx, hy, hz, h, inv, nx, ny, nz, c0f, s0f, slack = G
+    if x < ox or x > hx or y < oy or y > hy or z < oz or z > hz:
         return False
-    ox, oy, oz, h, inv = g[G_ORIGIN], g[G_ORIGIN + 1], g[G_ORIGIN + 2], g[G_H], g[G_INV_H]
-    nx, ny, nz = g[G_DIMS], g[G_DIMS + 1], g[G_DIMS + 2]
     ix, iy, iz = cell_coord(x, ox, inv, nx), cell_coord(y, oy, inv, ny), cell_coord(z, oz, inv, nz)
     local = (iz * int(ny) + iy) * int(nx) + ix
-    flag = items[int(g[G_STATUS0]) + local]
+    flag = items[int(s0f) + local]
     if flag == UNKNOWN:
         return False
-    d = (ox + (ix + 0.5) * h - x, oy + (iy + 0.5) * h - y, oz + (iz + 0.5) * h - z)
-    c = int(g[G_CELL0]) + local
+    c = int(c0f) + local
+    j0, j1 = cells[c], cells[c + 1]
+    if j0 == j1:
+        return flag == 1
+    dx, dy, dz = ox + (ix + 0.5) * h - x, oy + (iy + 0.5) * h - y, oz + (iz + 0.5) * h - z
+    slack = slack + 1e-12 * (abs(x) + abs(y) + abs(z) + abs(dx) + abs(dy) + abs(dz))
     odd = flag
-    for j in range(cells[c], cells[c + 1]):
-        s, bary, _ = _hit(tris, items[j], q, d, BARY_TOL, False)
+    for j in range(j0, j1):
+        s, bary, _ = _hit(tris, items[j], x, y, z, dx, dy, dz, BARY_TOL, False, slack)
         if s <= 1.0:
             if bary < BARY_TOL or s < 1e-12 or s > 1.0 - 1e-12:
                 return False
             odd ^= 1
     return odd == 1
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _cell_flag(items, G, x, y, z):
+    """The inside flag of the cell of (x, y, z) in the closed mesh of grid scalars ``G``
+    (0 outside the mesh's box).
+
+    _outside_by_planes: a point q on the outer side of the plane of every triangle of
+    its cell is outside whenever that flag is not 1 (inside). The segment from q to
+    the centre stays in the cell, so only those triangles can cross it; if none does,
+    q is where the centre is; if one does, the first crossing from q passes from a
+    triangle's outer side to its inner side, into the solid, so q is outside. The
+    kernel takes the planes from its crossing search, which tried every triangle of
+    the cell of a point it did not move."""
+    ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, _, s0f, _ = G
+    if x < ox or x > hx or y < oy or y > hy or z < oz or z > hz:
+        return 0
+    ix, iy, iz = cell_coord(x, ox, inv, nx), cell_coord(y, oy, inv, ny), cell_coord(z, oz, inv, nz)
+    return items[int(s0f) + (iz * int(ny) + iy) * int(nx) + ix]
 
 
 @njit(**EXACT_OPTIONS)
@@ -315,20 +371,19 @@ def _nearest(tris, g, cells, items, q):
 
 @njit(**EXACT_OPTIONS)
 def _push_out(tris, g, cells, items, q, margin):
-    """(q, False), or where q is inside the closed mesh of row ``g`` (the nearest
-    surface point, ``margin`` [m] beyond it away from q, True); along the nearest
-    triangle's outward normal where that point would still be inside."""
-    if not _inside(tris, g, cells, items, q):
-        return q, False
+    """For q inside the closed mesh of row ``g``: (the nearest surface point, ``margin``
+    [m] beyond it away from q, True), or along the nearest triangle's outward normal
+    where that point would still be inside; (q, False) where no triangle is found.
+    Called only for points found inside, so its call costs nothing in the common case."""
     c, t = _nearest(tris, g, cells, items, q)
     if t < 0:
         return q, False
     dx, dy, dz = c[0] - q[0], c[1] - q[1], c[2] - q[2]
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
-    nx, ny, nz = _unit_normal(tris, t)
+    nx, ny, nz = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2]
     if length > 1e-12 * g[G_H]:
         out = (c[0] + margin * dx / length, c[1] + margin * dy / length, c[2] + margin * dz / length)
-        if not _inside(tris, g, cells, items, out):
+        if not _inside(tris, cells, items, _grid_scalars(g), out[0], out[1], out[2]):
             return out, True
     return (c[0] + margin * nx, c[1] + margin * ny, c[2] + margin * nz), True
 
@@ -336,35 +391,43 @@ def _push_out(tris, g, cells, items, q, margin):
 # --- the kernels -----------------------------------------------------------------
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _to_rest(m, o, x, y, z):
-    """R^T (p - o) for R the row-major 3x3 at m[o:o+9] and offset m[o+9:o+12]."""
-    px, py, pz = x - m[o + 9], y - m[o + 10], z - m[o + 11]
-    return (m[o] * px + m[o + 3] * py + m[o + 6] * pz,
-            m[o + 1] * px + m[o + 4] * py + m[o + 7] * pz,
-            m[o + 2] * px + m[o + 5] * py + m[o + 8] * pz)
+def _frame(m, o):
+    """The rotation (row-major) and offset at m[o:o+12] as one tuple of 12 floats,
+    read once per mesh."""
+    return (m[o], m[o + 1], m[o + 2], m[o + 3], m[o + 4], m[o + 5], m[o + 6], m[o + 7], m[o + 8],
+            m[o + 9], m[o + 10], m[o + 11])
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _to_world(m, o, q):
-    """R q + o for R and o as in :func:`_to_rest`."""
-    return (m[o] * q[0] + m[o + 1] * q[1] + m[o + 2] * q[2] + m[o + 9],
-            m[o + 3] * q[0] + m[o + 4] * q[1] + m[o + 5] * q[2] + m[o + 10],
-            m[o + 6] * q[0] + m[o + 7] * q[1] + m[o + 8] * q[2] + m[o + 11])
+def _to_rest(f, x, y, z):
+    """R^T (p - o) for the frame tuple ``f`` of :func:`_frame`."""
+    px, py, pz = x - f[9], y - f[10], z - f[11]
+    return (f[0] * px + f[3] * py + f[6] * pz,
+            f[1] * px + f[4] * py + f[7] * pz,
+            f[2] * px + f[5] * py + f[8] * pz)
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _finite3(q):
-    return np.isfinite(q[0]) and np.isfinite(q[1]) and np.isfinite(q[2])
+def _to_world(f, x, y, z):
+    """R q + o for the frame tuple ``f`` of :func:`_frame`."""
+    return (f[0] * x + f[1] * y + f[2] * z + f[9],
+            f[3] * x + f[4] * y + f[5] * z + f[10],
+            f[6] * x + f[7] * y + f[8] * z + f[11])
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _misses_box(g, q0, q1, reach):
-    """Whether the box of the segment q0 -> q1, grown by ``reach`` [m], misses the mesh's
-    box: the cheap test the kernels make before any search (a call that takes the
-    arrays costs more than the test)."""
-    return (max(q0[0], q1[0]) + reach < g[G_ORIGIN] or min(q0[0], q1[0]) - reach > g[G_HI]
-            or max(q0[1], q1[1]) + reach < g[G_ORIGIN + 1] or min(q0[1], q1[1]) - reach > g[G_HI + 1]
-            or max(q0[2], q1[2]) + reach < g[G_ORIGIN + 2] or min(q0[2], q1[2]) - reach > g[G_HI + 2])
+def _finite6(a, b, c, d, e, f):
+    return (np.isfinite(a) and np.isfinite(b) and np.isfinite(c) and np.isfinite(d) and np.isfinite(e)
+            and np.isfinite(f))
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
+    """Whether the box of the segment, grown by ``reach`` [m], misses the mesh's box:
+    the cheap test the kernels make before any search."""
+    return (max(x0, x1) + reach < G[0] or min(x0, x1) - reach > G[3]
+            or max(y0, y1) + reach < G[1] or min(y0, y1) - reach > G[4]
+            or max(z0, z1) + reach < G[2] or min(z0, z1) - reach > G[5])
 
 
 @njit(**EXACT_OPTIONS)
@@ -393,7 +456,8 @@ def collide_meshes(P, L, free, control, lo, hi, s):
 @njit(**EXACT_OPTIONS)
 def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
     """The body of :func:`collide_meshes`, with ``control.meshes`` as ``meshes``, so that
-    numba prunes it when that is None."""
+    numba prunes it when that is None. Per point, no call: the searches are inlined,
+    and each triangle's plane rejects the points that stay on one side of it."""
     if meshes is None:
         return
     tris, grid, cells, items = control.mesh_tris, control.mesh_grid, control.mesh_cells, control.mesh_items
@@ -406,31 +470,38 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         if m.shape[0] == 0:
             continue
         g = grid[k]
+        G = _grid_scalars(g)
+        reach = _reach(g)
+        now, before = _frame(m, 0), _frame(m, 12)
         keep = 1.0 - min(max(m[24], 0.0), 1.0)
         margin = max(m[25], 0.0)
         closed = g[G_CLOSED] != 0.0
         for p in range(lo, hi):
             if free[p] == 0.0:
                 continue
-            q0 = _to_rest(m, 12, L[0, p], L[1, p], L[2, p])
-            q1 = _to_rest(m, 0, P[0, p], P[1, p], P[2, p])
-            if not (_finite3(q0) and _finite3(q1)) or _misses_box(g, q0, q1, margin):
+            x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
+            x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
+            if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
                 continue
-            best, t, _ = _first_crossing(tris, g, cells, items, q0, q1, margin, closed)
+            _, t, _, outer = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             moved = t >= 0
-            q = q1
+            x, y, z = x1, y1, z1
             if moved:
-                S = _put_off(tris, t, q0, q1, best, margin)
-                q = (q0[0] + keep * (S[0] - q0[0]), q0[1] + keep * (S[1] - q0[1]), q0[2] + keep * (S[2] - q0[2]))
-                _, again, _ = _first_crossing(tris, g, cells, items, q0, q, margin, closed)
+                sx, sy, sz = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
+                x, y, z = x0 + keep * (sx - x0), y0 + keep * (sy - y0), z0 + keep * (sz - z0)
+                _, again, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x, y, z, reach, closed)
                 if again >= 0:
-                    q = q0
-            if closed:
-                q, pushed = _push_out(tris, g, cells, items, q, margin)
+                    x, y, z = x0, y0, z0
+            # a point that crossed nothing and is off every plane of its cell on the outer
+            # side is outside unless its cell's centre is inside (see _outside_by_planes)
+            skip = not closed or (not moved and outer and _cell_flag(items, G, x, y, z) != 1)
+            if not skip and _inside(tris, cells, items, G, x, y, z):
+                q, pushed = _push_out(tris, g, cells, items, (x, y, z), margin)
+                x, y, z = q
                 moved = moved or pushed
             if moved:
-                w = _to_world(m, 0, q)
-                P[0, p], P[1, p], P[2, p] = w[0], w[1], w[2]
+                wx, wy, wz = _to_world(now, x, y, z)
+                P[0, p], P[1, p], P[2, p] = wx, wy, wz
 
 
 @njit(**EXACT_OPTIONS)
@@ -445,7 +516,8 @@ def settle_meshes(P, Q, free, control, lo, hi, s):
 @njit(**EXACT_OPTIONS)
 def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
     """The body of :func:`settle_meshes`, with ``control.meshes`` as ``meshes``, so that
-    numba prunes it when that is None."""
+    numba prunes it when that is None. A point the later pass did not move (most of
+    them) is skipped before any transform."""
     if meshes is None:
         return
     tris, grid, cells, items = control.mesh_tris, control.mesh_grid, control.mesh_cells, control.mesh_items
@@ -458,31 +530,38 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         if m.shape[0] == 0:
             continue
         g = grid[k]
+        G = _grid_scalars(g)
+        reach = _reach(g)
+        now = _frame(m, 0)
         margin = max(m[25], 0.0)
         closed = g[G_CLOSED] != 0.0
         for p in range(lo, hi):
             if free[p] == 0.0:
                 continue
-            q0 = _to_rest(m, 0, Q[0, p], Q[1, p], Q[2, p])
-            q1 = _to_rest(m, 0, P[0, p], P[1, p], P[2, p])
-            if not (_finite3(q0) and _finite3(q1)) or _misses_box(g, q0, q1, margin):
+            px, py, pz = P[0, p], P[1, p], P[2, p]
+            qx, qy, qz = Q[0, p], Q[1, p], Q[2, p]
+            if px == qx and py == qy and pz == qz:
                 continue
-            best, t, _ = _first_crossing(tris, g, cells, items, q0, q1, margin, closed)
+            x0, y0, z0 = _to_rest(now, qx, qy, qz)
+            x1, y1, z1 = _to_rest(now, px, py, pz)
+            if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
+                continue
+            _, t, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             if t < 0:
                 continue
-            q = _put_off(tris, t, q0, q1, best, margin)
-            _, again, _ = _first_crossing(tris, g, cells, items, q0, q, margin, closed)
+            x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
+            _, again, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x, y, z, reach, closed)
             if again >= 0:
-                q = q0
-            w = _to_world(m, 0, q)
-            P[0, p], P[1, p], P[2, p] = w[0], w[1], w[2]
+                x, y, z = x0, y0, z0
+            wx, wy, wz = _to_world(now, x, y, z)
+            P[0, p], P[1, p], P[2, p] = wx, wy, wz
 
 
 @njit(**EXACT_OPTIONS)
 def count_tests(P, L, free, control, lo, hi, s, out):
-    """For the benchmark: the triangles :func:`collide_meshes` tests for each point of
-    ``lo:hi`` (its first crossing search, over every mesh), written to ``out[lo:hi]``;
-    moves nothing."""
+    """For the benchmark: the triangles :func:`collide_meshes` tries for each point of
+    ``lo:hi`` (its first crossing search, over every mesh; a plane's early reject
+    counts), written to ``out[lo:hi]``; moves nothing."""
     _count_tests(P, L, free, control.meshes, control, lo, hi, s, out)
 
 
@@ -501,11 +580,15 @@ def _count_tests(P, L, free, meshes, control, lo, hi, s, out):
         if m.shape[0] == 0:
             continue
         g = grid[k]
+        G = _grid_scalars(g)
+        reach = _reach(g)
+        now, before = _frame(m, 0), _frame(m, 12)
+        closed = g[G_CLOSED] != 0.0
         for p in range(max(lo, 0), hi):
-            q0 = _to_rest(m, 12, L[0, p], L[1, p], L[2, p])
-            q1 = _to_rest(m, 0, P[0, p], P[1, p], P[2, p])
-            if free[p] != 0.0 and _finite3(q0) and _finite3(q1):
-                out[p] += _first_crossing(tris, g, cells, items, q0, q1, max(m[25], 0.0), g[G_CLOSED] != 0.0)[2]
+            x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
+            x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
+            if free[p] != 0.0 and _finite6(x0, y0, z0, x1, y1, z1):
+                out[p] += _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)[2]
 
 
 __all__ = ["POSE_FIELDS", "collide_meshes", "count_tests", "pack_meshes", "pose_rows", "settle_meshes"]

@@ -3,10 +3,14 @@
 :func:`pack_meshes` turns the scene's meshes (in their rest pose) into the
 arrays the kernels of :mod:`.mesh` read:
 
-``mesh_tris`` float64 (T, 9)
+``mesh_tris`` float64 (T, TRI_FIELDS)
     the corners (ax, ay, az, bx, by, bz, cx, cy, cz) [m] of every triangle of
-    every mesh, one mesh after another. A closed mesh is wound so that its
-    signed volume is positive: each normal (b-a) x (c-a) points out of the solid.
+    every mesh, one mesh after another (each mesh's in the Morton order of their
+    centroids, not the file's), then its plane: the unit normal
+    (b-a) x (c-a) / |...| (at T_NORMAL, three values; zero for a zero-area
+    triangle) and its offset n . a [m] (at T_OFFSET), so a point's signed
+    distance from the plane is n . x - offset. A closed mesh is wound so that its
+    signed volume is positive: each normal points out of the solid.
 ``mesh_grid`` float64 (K, GRID_FIELDS)
     one row per mesh, the fields at the indices named ``G_*`` below: the grid's
     corner (the low corner of the mesh's box) [m], its cell size h [m] and 1/h,
@@ -47,6 +51,10 @@ MAX_CELLS = 1 << 22
 MAX_ITEMS = 1 << 24
 """most entries of one mesh's cell lists; a mesh whose triangles would fill
 more (a few huge triangles among tiny ones) gets coarser cells"""
+
+TRI_FIELDS = 13
+T_NORMAL, T_OFFSET = 9, 12
+"""the columns of a row of ``mesh_tris``: the corners (9), the unit normal (3), the offset"""
 
 GRID_FIELDS = 16
 G_ORIGIN, G_H, G_INV_H, G_DIMS, G_CELL0, G_TRI0, G_NTRI, G_CLOSED, G_HI, G_STATUS0 = 0, 3, 4, 5, 8, 9, 10, 11, 12, 15
@@ -209,8 +217,31 @@ def _fill_status(tris, g, cells, items, status0):
 
 # --- packing ------------------------------------------------------------------
 
+def _spread_bits(v: np.ndarray) -> np.ndarray:
+    """10-bit integers with two zero bits put after each bit (for a Morton code)"""
+    v = v.astype(np.uint64) & np.uint64(0x3FF)
+    v = (v | (v << np.uint64(16))) & np.uint64(0x030000FF)
+    v = (v | (v << np.uint64(8))) & np.uint64(0x0300F00F)
+    v = (v | (v << np.uint64(4))) & np.uint64(0x030C30C3)
+    v = (v | (v << np.uint64(2))) & np.uint64(0x09249249)
+    return v
+
+
+def _near_first(tris: np.ndarray) -> np.ndarray:
+    """The triangles in the Morton order of their centroids: triangles that share a
+    cell lie near in memory, so a point's search reads few cache lines."""
+    if len(tris) < 2:
+        return tris
+    centre = (tris[:, 0:3] + tris[:, 3:6] + tris[:, 6:9]) / 3.0
+    lo, hi = centre.min(axis=0), centre.max(axis=0)
+    q = np.floor((centre - lo) / np.maximum(hi - lo, 1e-300) * 1023.0).clip(0, 1023)
+    code = _spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << np.uint64(1)) | (_spread_bits(q[:, 2]) << np.uint64(2))
+    return tris[np.argsort(code, kind="stable")]
+
+
 def _mesh_triangles(shape) -> tuple[np.ndarray, bool]:
-    """(the (F, 9) corners, closed) of one shape, checked; a closed mesh wound outward."""
+    """(the (F, 9) corners, closed) of one shape, checked; a closed mesh wound outward;
+    in the order of :func:`_near_first`."""
     v = np.asarray(shape.vertices, dtype=np.float64)
     f = np.asarray(shape.triangles, dtype=np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
@@ -225,7 +256,22 @@ def _mesh_triangles(shape) -> tuple[np.ndarray, bool]:
         a, b, c = tris[:, 0:3], tris[:, 3:6], tris[:, 6:9]
         if np.einsum("ij,ij->", a, np.cross(b, c)) < 0.0:
             tris = np.concatenate([a, c, b], axis=1)
-    return tris, closed
+    return _near_first(tris), closed
+
+
+def _with_planes(tris: np.ndarray) -> np.ndarray:
+    """(F, TRI_FIELDS) rows from (F, 9) corners: each triangle's unit normal and offset
+    added (zero for a zero-area triangle, which no kernel then crosses)"""
+    a, b, c = tris[:, 0:3], tris[:, 3:6], tris[:, 6:9]
+    n = np.cross(b - a, c - a)
+    length = np.linalg.norm(n, axis=1)
+    ok = length > 0.0
+    n[ok] /= length[ok, None]
+    n[~ok] = 0.0
+    out = np.empty((len(tris), TRI_FIELDS))
+    out[:, 0:9], out[:, T_NORMAL:T_NORMAL + 3] = tris, n
+    out[:, T_OFFSET] = np.einsum("ij,ij->i", n, a)
+    return out
 
 
 def _grid_row(tris: np.ndarray, closed: bool, tri0: int) -> np.ndarray:
@@ -273,7 +319,7 @@ def pack_meshes(shapes: Sequence) -> dict | None:
         rows.append(_grid_row(tris, closed, tri0))
         parts.append(tris)
         tri0 += len(tris)
-    mesh_tris = np.ascontiguousarray(np.concatenate(parts, axis=0)) if tri0 else np.zeros((0, 9))
+    mesh_tris = _with_planes(np.concatenate(parts, axis=0)) if tri0 else np.zeros((0, TRI_FIELDS))
     grid = np.stack(rows)
     ncells = [int(np.prod(g[G_DIMS:G_DIMS + 3])) for g in grid]
     nitems = [_count_items(mesh_tris, g) for g in grid]
