@@ -53,7 +53,7 @@ def collide_planes(P, L, free, planes, lo, hi, s):
         px, py, pz = row[0], row[1], row[2]
         nx, ny, nz = row[3], row[4], row[5]
         keep = 1.0 - row[6]
-        if not moving:
+        if not moving:  # the course code's loop, to the bit: no carry in its sums
             for p in range(x.shape[0]):
                 d_now = (x[p] - px) * nx + (y[p] - py) * ny + (z[p] - pz) * nz
                 d_last = (lx[p] - px) * nx + (ly[p] - py) * ny + (lz[p] - pz) * nz

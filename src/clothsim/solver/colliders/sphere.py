@@ -50,7 +50,7 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
         cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
         r2 = r * r
         keep = 1.0 - fr
-        if not moving:
+        if not moving:  # the course code's loop, to the bit: no carry in its sums
             for p in range(x.shape[0]):
                 dx = x[p] - cx
                 dy = y[p] - cy
