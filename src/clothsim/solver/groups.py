@@ -101,13 +101,14 @@ class Control(NamedTuple):
     meshes: np.ndarray | None
     """the mesh colliders' poses: see :mod:`.colliders.mesh`"""
     mesh_tris: np.ndarray | None
-    """every mesh collider's triangles in its rest pose, float64 (Ttot, 9)"""
+    """every mesh collider's triangles in its rest pose with their planes, float64
+    (Ttot, 13): see :mod:`.colliders.meshgrid`"""
     mesh_grid: np.ndarray | None
     """each mesh collider's cell grid, one row per mesh: see :mod:`.colliders.mesh`"""
     mesh_cells: np.ndarray | None
     """where each cell's triangles start in ``mesh_items``, int64 (cells + 1,)"""
     mesh_items: np.ndarray | None
-    """the triangles of each cell, int32"""
+    """the triangles of each cell, then each closed mesh's cell inside flags, int32"""
     moved_points: np.ndarray | None
     """the points of every handle, int64 (H,): see :mod:`.handles`"""
     moved_to: np.ndarray | None
