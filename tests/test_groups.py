@@ -47,6 +47,8 @@ LONG_SIGNATURES = {
     "_inside": 17,  # inlined into _scan: the vector test's planes and scalars one by one
     "_put_checked": 15,  # inlined into _scan: the append's arrays and scalars one by one
     "query_points": 11,  # the cell grid and the build's scalars beside the list
+    "_first_crossing": 12,  # inlined into the mesh kernels: the segment's ends one coordinate at a time
+    "_hit": 11,  # inlined into _first_crossing: the segment and its slack as scalars, no array per point
 }
 """kernels that take more than MAX_PARAMETERS parameters today, and how many"""
 

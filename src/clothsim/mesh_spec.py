@@ -11,17 +11,16 @@ transform.
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from .scene_limits import DENSITY_MAX, DENSITY_MIN, KS_MAX, LENGTH_MAX, LENGTH_MIN, POINTS_MAX, SCALE_MAX
+from .scene_limits import DENSITY_MAX, DENSITY_MIN, KS_MAX, LENGTH_MAX, LENGTH_MIN, POINTS_MAX
 from .scene_reader import Reader, Vec3, describe
+from .transform import MeshTransform, parse_transform
 
 if TYPE_CHECKING:
-    import numpy as np
 
     from .meshfile import MeshData
 
@@ -29,39 +28,6 @@ GRID_KEYS = ("width", "height", "num_width_points", "num_height_points", "orient
 MATERIAL_DEFAULTS: dict[str, Any] = {"damping": 0.2, "density": 150.0, "ks": 5000.0, "enable_structural": True,
                                      "enable_shearing": True, "enable_bending": True}
 MESH_KEYS = {"mesh", "transform", "pinned_vertices", "pinned_region", "thickness", "handles"} | set(MATERIAL_DEFAULTS)
-
-
-@dataclass(frozen=True)
-class MeshTransform:
-    """Where the file's vertices go: scaled, then rotated, then translated."""
-
-    scale: float | Vec3 = 1.0
-    """a factor, or one per axis [x, y, z]"""
-    rotate: Vec3 = (0.0, 0.0, 0.0)
-    """degrees about x, then y, then z (right-handed, fixed axes)"""
-    translate: Vec3 = (0.0, 0.0, 0.0)
-    """[m]"""
-
-    def matrix(self) -> np.ndarray:
-        """The linear part, float64 (3, 3): ``Rz @ Ry @ Rx @ S``."""
-        import numpy as np
-
-        ax, ay, az = (math.radians(a) for a in self.rotate)
-        cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
-        rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-        ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-        rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-        return rz @ ry @ rx @ np.diag(np.broadcast_to(np.asarray(self.scale, dtype=np.float64), (3,)))
-
-    def apply(self, points: np.ndarray) -> np.ndarray:
-        """float64 (N, 3) positions [file units] to scene positions [m]."""
-        import numpy as np
-
-        return np.asarray(points, dtype=np.float64) @ self.matrix().T + np.asarray(self.translate)
-
-    def to_dict(self) -> dict[str, Any]:
-        scale = self.scale if isinstance(self.scale, float) else list(self.scale)
-        return {"scale": scale, "rotate": list(self.rotate), "translate": list(self.translate)}
 
 
 @dataclass
@@ -128,7 +94,7 @@ def parse_mesh_cloth(r: Reader, c: dict[str, Any], key: str) -> MeshClothSpec:
     if not isinstance(mesh, str) or not mesh:
         raise r.fail(f"{key}.mesh", f"expected the name of a mesh file, got {describe(mesh)}")
     shown = os.path.normpath(os.path.join(os.path.dirname(r.source), mesh)) if r.source else mesh
-    transform = _transform(r, c.get("transform", {}), f"{key}.transform")
+    transform = parse_transform(r, c.get("transform", {}), f"{key}.transform")
     try:
         data = load_mesh(os.path.abspath(shown), transform.apply)
     except MeshFileError as exc:
@@ -167,23 +133,6 @@ def _check_extent(r: Reader, data: MeshData, key: str, shown: str) -> None:
     if not extent <= LENGTH_MAX:  # inf and nan too
         raise r.fail(key, f"{shown}: expected every point within ±{LENGTH_MAX:g} m after the transform, "
                           f"got one at {extent:g}")
-
-
-def _transform(r: Reader, raw: Any, key: str) -> MeshTransform:
-    t = r.obj(raw, key)
-    r.keys(t, key, {"scale", "rotate", "translate"}, ())
-    scale: float | Vec3 = 1.0
-    if "scale" in t:
-        if isinstance(t["scale"], list):
-            scale = r.vec3(t["scale"], f"{key}.scale", SCALE_MAX)
-            for k, s in enumerate(scale):
-                if s <= 0:
-                    raise r.fail(f"{key}.scale[{k}]", f"expected a number > 0, got {s:g}")
-        else:
-            scale = r.number(t["scale"], f"{key}.scale", lo=0, lo_open=True, hi=SCALE_MAX)
-    return MeshTransform(scale=scale,
-                         rotate=r.vec3(t["rotate"], f"{key}.rotate") if "rotate" in t else (0.0, 0.0, 0.0),
-                         translate=r.vec3(t["translate"], f"{key}.translate", LENGTH_MAX) if "translate" in t else (0.0, 0.0, 0.0))
 
 
 def _pinned_vertices(r: Reader, raw: Any, key: str, data: MeshData, shown: str) -> list[int]:

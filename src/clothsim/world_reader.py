@@ -18,6 +18,7 @@ from .motion import Animation, Keyframe
 from .scene_limits import (ANGLE_MAX, COEFFICIENT_MAX, LENGTH_MAX, LENGTH_MIN, MARGIN_MAX, SEED_MAX, SPEED_MAX,
                            TIME_MAX)
 from .scene_reader import Reader, Vec3, as_list, describe
+from .transform import parse_transform
 from .world_spec import MARGIN_DEFAULT, BoxSpec, HandleSpec, MeshColliderSpec, WindSpec
 
 _ZERO = (0.0, 0.0, 0.0)
@@ -101,7 +102,6 @@ def parse_mesh_colliders(r: Reader, raw: Any) -> list[MeshColliderSpec]:
     """``mesh``: one object or a list of them; each file is loaded (see :mod:`clothsim.collider_mesh`)."""
     # here, not at the top: the mesh readers only for a scene with a mesh
     from .collider_mesh import load_collider
-    from .mesh_spec import _transform
     from .meshfile import MeshFileError
 
     out = []
@@ -113,7 +113,7 @@ def parse_mesh_colliders(r: Reader, raw: Any) -> list[MeshColliderSpec]:
         if not isinstance(path, str) or not path:
             raise r.fail(f"{key}.path", f"expected the name of a mesh file, got {describe(path)}")
         shown = os.path.normpath(os.path.join(os.path.dirname(r.source), path)) if r.source else path
-        transform = _transform(r, m.get("transform", {}), f"{key}.transform")
+        transform = parse_transform(r, m.get("transform", {}), f"{key}.transform")
         friction = r.number(m["friction"], f"{key}.friction", lo=0, hi=1)
         margin = _margin(r, m, key)
         animation = optional_animation(r, m, key)

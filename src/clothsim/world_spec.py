@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from .mesh_spec import MeshTransform
+from .transform import MeshTransform
 from .motion import Animation, Vec3
 
 if TYPE_CHECKING:  # numpy loads with a scene's meshes, not with the command line's --help

@@ -80,7 +80,7 @@ def calls(variant: str) -> list:
     from .control import make_control
     from .handles import place_handles
     from .wind import blow
-    from .groups import Control, Knobs, Points, Scratch
+    from .groups import Knobs, Points, Scratch
     from .selfcollide import NeighbourList
     from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs
     from .selfcollide.drift import _to_single, drift_bound
