@@ -196,10 +196,12 @@ def flag(wind: dict | None) -> dict:
 
 def test_a_flag_in_a_5_m_s_wind_streams_downwind_and_hangs_still_without_it(path):
     """pinned along one edge to a pole: with the wind at 0 it hangs still (as a flag
-    with no wind, and moving less than a millimetre a frame); turned to 5 m/s
-    (lift 0.5) live through the API, the mean offset of its points along the wind
-    is at least half its length"""
-    sim = sim_of(path, flag({"velocity": [0.0, 0, 0], "lift": 0.5}))
+    with no wind, and moving less than a millimetre a frame); turned to 5 m/s (lift 1)
+    live through the API, the mean offset of its points along the wind is at least
+    half its length in every frame of a second, once it has streamed out. (Drag alone,
+    along the normal, holds a flag some 18 degrees below the wind, where the normal
+    part of the wind carries its weight: a mean offset of about 0.48 of its length.)"""
+    sim = sim_of(path, flag({"velocity": [0.0, 0, 0], "lift": 1.0}))
     calm = sim_of(path, flag(None))
     sim.run(3.0)
     calm.run(3.0)
@@ -209,8 +211,12 @@ def test_a_flag_in_a_5_m_s_wind_streams_downwind_and_hangs_still_without_it(path
     sim.step()
     assert np.abs(sim.positions - before).max() < 1e-3
     sim.wind.velocity = (5.0, 0.0, 0.0)
-    sim.run(3.0)
-    assert sim.positions[:, 0].mean() >= 0.5
+    sim.run(2.0)
+    offsets = []
+    for _ in range(90):
+        sim.step()
+        offsets.append(sim.positions[:, 0].mean())
+    assert min(offsets) >= 0.5, min(offsets)
 
 
 def test_wind_drag_on_a_triangle_is_half_rho_cd_area_u_squared():
