@@ -24,7 +24,6 @@ import sys
 import time
 from pathlib import Path
 from types import SimpleNamespace
-from typing import NamedTuple
 
 import numpy as np
 import trimesh
@@ -34,18 +33,24 @@ from common import emit, machine  # noqa: E402
 
 import clothsim  # noqa: E402
 from clothsim import Simulation  # noqa: E402
-from clothsim.solver.colliders.mesh import collide_meshes, count_tests, pack_meshes, pose_rows  # noqa: E402
+from clothsim.solver.colliders.mesh import (  # noqa: E402
+    collide_meshes,
+    count_tests,
+    pack_meshes,
+    pose_rows,
+)
+from clothsim.solver.groups import Control  # noqa: E402
 
 CLOTH = Path(clothsim.__file__).resolve().parent / "scenes" / "pinned2.json"
 """a 50x50 cloth hanging from two corners, no collider"""
 
 
-class Ctl(NamedTuple):
-    meshes: np.ndarray
-    mesh_tris: np.ndarray
-    mesh_grid: np.ndarray
-    mesh_cells: np.ndarray
-    mesh_items: np.ndarray
+def Ctl(**mesh_fields):
+    """the solver's own Control with only the mesh fields set: a kernel compiled for a
+    named tuple of this module would go into numba's cache with it, and a process that
+    cannot import this module could not load that cache any more"""
+    return Control(handle=-1, handle_pos=np.zeros(3), spheres=None, planes=None, boxes=None, moved_points=None,
+                   moved_to=None, wind=None, **mesh_fields)
 
 
 def draped(n=50, side=1.5, radius=0.5, gap=0.004, drop=0.006, seed=0):

@@ -1,7 +1,6 @@
 """The triangle-mesh collider kernels (solver/colliders/mesh.py, meshgrid.py), on their own.
 
-The kernels take any named tuple with the mesh fields; :class:`Ctl` is the
-smallest. Positions are (3, N) coordinate planes [m].
+The kernels take the solver's Control (:func:`Ctl` sets its mesh fields). Positions are (3, N) coordinate planes [m].
 """
 
 from __future__ import annotations
@@ -11,26 +10,32 @@ import os
 import subprocess
 import sys
 from types import SimpleNamespace
-from typing import NamedTuple
 
 import numpy as np
 import pytest
 import trimesh
 
-from clothsim.solver.colliders.mesh import collide_meshes, count_tests, pack_meshes, pose_rows, settle_meshes
+from clothsim.solver.colliders.mesh import (
+    collide_meshes,
+    count_tests,
+    pack_meshes,
+    pose_rows,
+    settle_meshes,
+)
 from clothsim.solver.colliders.meshgrid import G_CELL0, G_DIMS, G_H, G_ORIGIN
+from clothsim.solver.groups import Control
 
 MARGIN = 1e-3
 EYE = np.eye(3)
 ZERO = np.zeros(3)
 
 
-class Ctl(NamedTuple):
-    meshes: np.ndarray | None
-    mesh_tris: np.ndarray
-    mesh_grid: np.ndarray
-    mesh_cells: np.ndarray
-    mesh_items: np.ndarray
+def Ctl(**mesh_fields):
+    """the solver's own Control with only the mesh fields set: a kernel compiled for a
+    named tuple of this module would go into numba's cache with it, and a process that
+    cannot import this module could not load that cache any more"""
+    return Control(handle=-1, handle_pos=np.zeros(3), spheres=None, planes=None, boxes=None, moved_points=None,
+                   moved_to=None, wind=None, **mesh_fields)
 
 
 def shape(vertices, triangles, closed):
