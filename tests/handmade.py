@@ -83,3 +83,22 @@ def disc_and_grid() -> Model:
 
     grid = build_model(parse_scene({"cloth": copy.deepcopy(SMALL_CLOTH)}, "grid").cloth)
     return concatenate([moved(disc_model(), (1.2, 0.0, 0.0)), grid], ["disc", "grid"])
+
+
+def turn_about_y(sim, center, frames: int) -> np.ndarray:
+    """How far each point of ``sim`` turns about the vertical line through ``center``
+    ((x, z) [m]) over ``frames`` frames [rad], unwrapped frame by frame, (N,): a
+    positive turn about y takes +x toward -z, so it reads negative here."""
+    cx, cz = center
+
+    def angle(p):
+        return np.arctan2(p[:, 2] - cz, p[:, 0] - cx)
+
+    last, turned = angle(sim.positions), np.zeros(sim.model.num_points)
+    for _ in range(frames):
+        sim.step()
+        now = angle(sim.positions)
+        turned += np.angle(np.exp(1j * (now - last)))
+        last = now
+    return turned
+

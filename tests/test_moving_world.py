@@ -15,6 +15,7 @@ from clothsim.scene import parse_scene
 from clothsim.solver.wind import AIR_DENSITY
 
 from .conftest import SMALL_CLOTH
+from .handmade import turn_about_y
 
 PATHS = [(1, "auto"), (2, "auto"), (1, "mesh")]
 """(threads, solver path): serial, cut in two, the general path"""
@@ -100,14 +101,8 @@ def test_a_spinning_sphere_turns_the_cloth_on_it_by_friction(path):
              "sphere": {"origin": [0.5, 0.5, 0.5], "radius": 0.3, "friction": 1.0,
                         "animation": {"keys": [{"t": 0}, {"t": 4, "rotate": [0, 360, 0]}], "loop": True}}}
     sim = sim_of(path, scene)
-    angle = lambda p: np.arctan2(p[:, 2] - 0.5, p[:, 0] - 0.5)  # noqa: E731
     radius = np.hypot(sim.positions[:, 0] - 0.5, sim.positions[:, 2] - 0.5)
-    last, turned = angle(sim.positions), np.zeros(sim.model.num_points)
-    for _ in range(360):
-        sim.step()
-        now = angle(sim.positions)
-        turned += np.angle(np.exp(1j * (now - last)))
-        last = now
+    turned = turn_about_y(sim, (0.5, 0.5), 360)
     # a positive turn about y takes +x toward -z: the angle from +x toward +z falls
     sphere_turn = -2 * np.pi
     mean = turned[radius > 0.1].mean()

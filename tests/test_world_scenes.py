@@ -13,6 +13,7 @@ from clothsim.procedural import face_normals, torus
 from clothsim.scene import parse_scene
 
 from .conftest import SCENES
+from .handmade import turn_about_y
 
 WORLD_SCENES = {"table_pull": 1600, "spinning_sphere": 2500, "torus_drape": 1600, "windy_flag": 960,
                 "curtain": 1728}
@@ -95,16 +96,8 @@ def test_spinning_sphere_twists_the_cloth_with_it():
     cx, cz = sphere["origin"][0], sphere["origin"][2]
     sim = Simulation.from_file(SCENES / "spinning_sphere.json")
 
-    def angle(p):
-        return np.arctan2(p[:, 2] - cz, p[:, 0] - cx)
-
     off_axis = np.hypot(sim.positions[:, 0] - cx, sim.positions[:, 2] - cz) > 0.1
-    last, turned = angle(sim.positions), np.zeros(sim.model.num_points)
-    for _ in range(360):
-        sim.step()
-        now = angle(sim.positions)
-        turned += np.angle(np.exp(1j * (now - last)))
-        last = now
+    turned = turn_about_y(sim, (cx, cz), 360)
     assert np.isfinite(sim.positions).all()
     assert turned[off_axis].mean() / (-2 * np.pi) >= 0.5, np.degrees(turned[off_axis].mean())
 
