@@ -236,41 +236,24 @@ def _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, entry_
     inx, iny = int(nx), int(ny)
     c0 = int(c0f)
     cell = G[6]
-    if abs(dx) < cell and abs(dy) < cell and abs(dz) < cell:
-        # the common case, a segment shorter than a cell: the cells its box (grown by
-        # reach) overlaps, at once, without clipping it to the mesh's box (the cell
-        # numbers are clamped to the grid) or walking it in pieces
-        ix0 = cell_coord(min(x0, x1) - reach, ox, inv, nx)
-        ix1 = cell_coord(max(x0, x1) + reach, ox, inv, nx)
-        iy0 = cell_coord(min(y0, y1) - reach, oy, inv, ny)
-        iy1 = cell_coord(max(y0, y1) + reach, oy, inv, ny)
-        iz0 = cell_coord(min(z0, z1) - reach, oz, inv, nz)
-        iz1 = cell_coord(max(z0, z1) + reach, oz, inv, nz)
-        for iz in range(iz0, iz1 + 1):
-            for iy in range(iy0, iy1 + 1):
-                row = c0 + (iz * iny + iy) * inx
-                for j in range(cells[row + ix0], cells[row + ix1 + 1]):
-                    t = items[j]
-                    tested += 1
-                    s, _, h1 = _hit(tris, t, x0, y0, z0, dx, dy, dz, BARY_TOL, entry_only, slack)
-                    outer = outer and h1 > slack
-                    if s < best:
-                        best, best_t = s, t
-        return best, best_t, tested, outer
-    ta, tb = 0.0, 1.0
-    if dx != 0.0:
-        a, b = (lox - x0) / dx, (hix - x0) / dx
-        ta, tb = max(ta, min(a, b)), min(tb, max(a, b))
-    if dy != 0.0:
-        a, b = (loy - y0) / dy, (hiy - y0) / dy
-        ta, tb = max(ta, min(a, b)), min(tb, max(a, b))
-    if dz != 0.0:
-        a, b = (loz - z0) / dz, (hiz - z0) / dz
-        ta, tb = max(ta, min(a, b)), min(tb, max(a, b))
-    if not ta <= tb:
-        return best, best_t, tested, outer
-    cells_along = (tb - ta) * np.sqrt(dx * dx + dy * dy + dz * dz) * inv
-    pieces = int(min(cells_along, nx + ny + nz)) + 1
+    ta, tb, pieces = 0.0, 1.0, 1
+    if not (abs(dx) < cell and abs(dy) < cell and abs(dz) < cell):
+        # a segment longer than a cell is clipped to the mesh's box and walked in
+        # pieces; a shorter one (the common case) is one piece as it is (the cell
+        # numbers are clamped to the grid), without the divisions
+        if dx != 0.0:
+            a, b = (lox - x0) / dx, (hix - x0) / dx
+            ta, tb = max(ta, min(a, b)), min(tb, max(a, b))
+        if dy != 0.0:
+            a, b = (loy - y0) / dy, (hiy - y0) / dy
+            ta, tb = max(ta, min(a, b)), min(tb, max(a, b))
+        if dz != 0.0:
+            a, b = (loz - z0) / dz, (hiz - z0) / dz
+            ta, tb = max(ta, min(a, b)), min(tb, max(a, b))
+        if not ta <= tb:
+            return best, best_t, tested, outer
+        cells_along = (tb - ta) * np.sqrt(dx * dx + dy * dy + dz * dz) * inv
+        pieces = int(min(cells_along, nx + ny + nz)) + 1
     step = (tb - ta) / pieces
     for m in range(pieces):
         sa = ta + m * step
