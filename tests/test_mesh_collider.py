@@ -22,7 +22,7 @@ from clothsim.solver.colliders.mesh import (
     pose_rows,
     settle_meshes,
 )
-from clothsim.solver.colliders.meshgrid import G_CELL0, G_DIMS, G_H, G_ORIGIN
+from clothsim.solver.colliders.meshgrid import G_CELL0, G_DIMS, G_H, G_ORIGIN, G_STATUS0, INSIDE_BITS, NEAR
 from clothsim.solver.groups import Control
 
 MARGIN = 1e-3
@@ -463,14 +463,22 @@ def grid_query(packed, k, lo, hi):
     return found
 
 
-def test_the_grid_lists_every_triangle_whose_box_a_query_box_overlaps():
+def surface_samples(tris, n=12):
+    """(F, S, 3) points spread over each triangle, its corners and edges included"""
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1))
+    keep = i + j <= n
+    u, v = i[keep] / n, j[keep] / n
+    a, b, c = tris[:, None, 0:3], tris[:, None, 3:6], tris[:, None, 6:9]
+    return a + u[None, :, None] * (b - a) + v[None, :, None] * (c - a)
+
+
+def test_the_grid_lists_every_triangle_that_meets_a_query_box():
     torus = trimesh.creation.torus(major_radius=0.6, minor_radius=0.2)
     shapes = [square(z=0.3, half=0.4), sphere(0.5, 3, (0.2, 0.0, 0.1)), shape(torus.vertices, torus.faces, True)]
     packed = pack_meshes(shapes)
     tris = packed["mesh_tris"]
     assert len(tris) == 2 + 1280 + len(torus.faces)
-    tlo = np.minimum(np.minimum(tris[:, 0:3], tris[:, 3:6]), tris[:, 6:9])
-    thi = np.maximum(np.maximum(tris[:, 0:3], tris[:, 3:6]), tris[:, 6:9])
+    samples = surface_samples(tris)
     starts = np.cumsum([0] + [len(s.triangles) for s in shapes])
     rng = np.random.default_rng(3)
     for _ in range(200):
@@ -479,10 +487,58 @@ def test_the_grid_lists_every_triangle_whose_box_a_query_box_overlaps():
         lo = centre - rng.uniform(0, 0.2, 3)
         hi = centre + rng.uniform(0, 0.2, 3)
         mine = np.arange(starts[k], starts[k + 1])
-        overlap = mine[np.all((tlo[mine] <= hi) & (thi[mine] >= lo), axis=1)]
+        inside = np.all((samples[mine] >= lo) & (samples[mine] <= hi), axis=2)
+        meets = mine[inside.any(axis=1)]
         found = grid_query(packed, k, lo, hi)
-        assert set(overlap.tolist()) <= found
+        assert set(meets.tolist()) <= found
         assert found <= set(mine.tolist())
+
+
+def test_a_cell_lists_only_triangles_whose_plane_passes_through_it():
+    """the plane filter leaves out of a cell the triangles whose bounding box, but not
+    whose plane, reaches it: fewer entries than the boxes alone would make"""
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    packed = pack_meshes([shape(ball.vertices, ball.faces, True)])
+    g = packed["mesh_grid"][0]
+    o, h, dims = g[G_ORIGIN:G_ORIGIN + 3], g[G_H], g[G_DIMS:G_DIMS + 3].astype(int)
+    tris = packed["mesh_tris"]
+    lo = np.clip(np.floor((np.minimum(np.minimum(tris[:, 0:3], tris[:, 3:6]), tris[:, 6:9]) - o) / h), 0, dims - 1)
+    hi = np.clip(np.floor((np.maximum(np.maximum(tris[:, 0:3], tris[:, 3:6]), tris[:, 6:9]) - o) / h), 0, dims - 1)
+    by_boxes = int(np.prod(hi - lo + 1, axis=1).sum())
+    assert packed["mesh_cells"][-1] < 0.95 * by_boxes
+
+
+def test_near_marks_exactly_the_cells_next_to_a_cell_with_triangles():
+    """the fast path's flag, against a brute-force look at the 27 cells about each"""
+    torus = trimesh.creation.torus(major_radius=0.6, minor_radius=0.2)
+    packed = pack_meshes([square(z=0.3, half=0.4), shape(torus.vertices, torus.faces, True)])
+    for k in range(2):
+        g = packed["mesh_grid"][k]
+        nx, ny, nz = g[G_DIMS:G_DIMS + 3].astype(int)
+        c0, s0 = int(g[G_CELL0]), int(g[G_STATUS0])
+        busy = (np.diff(packed["mesh_cells"][c0:c0 + nx * ny * nz + 1]) > 0).reshape(nz, ny, nx)
+        status = packed["mesh_items"][s0:s0 + nx * ny * nz].reshape(nz, ny, nx)
+        padded = np.pad(busy, 1)
+        want = np.zeros_like(busy)
+        for dz in range(3):
+            for dy in range(3):
+                for dx in range(3):
+                    want |= padded[dz:dz + nz, dy:dy + ny, dx:dx + nx]
+        assert np.array_equal((status & NEAR) != 0, want)
+        if k == 0:
+            assert not np.any(status & INSIDE_BITS)  # an open mesh has no inside
+        else:
+            assert want.sum() < 0.9 * want.size  # the hole and the corners are far from it
+
+
+def test_a_point_deep_inside_a_closed_mesh_far_from_its_surface_is_pushed_out():
+    """a cell inside the solid without a triangle near it is not on the fast path"""
+    big = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
+    packed = pack_meshes([shape(big.vertices, big.faces, True)])
+    ctl = Ctl(meshes=pose_rows(np.eye(3), np.zeros(3), np.eye(3), np.zeros(3), 0.0, 1e-3)[None, None], **packed)
+    L, P = planes([[0.05, 0.02, 0.0]]), planes([[0.05, 0.02, -0.001]])
+    collide_meshes(P, L, np.ones(1), ctl, np.int64(0), np.int64(1), np.int64(0))
+    assert np.linalg.norm(P[:, 0]) > 0.99
 
 
 def test_count_tests_counts_the_triangles_a_point_tries(ball):

@@ -47,8 +47,8 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS
-from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, T_NORMAL, T_OFFSET,
-                       UNKNOWN, cell_coord, pack_meshes)
+from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, INSIDE_BITS, NEAR,
+                       T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, pack_meshes)
 
 POSE_FIELDS = 26
 """a pose row: R_now (9), o_now (3), R_before (9), o_before (3), friction, margin"""
@@ -309,7 +309,7 @@ def _inside(tris, cells, items, G, x, y, z):
         return False
     ix, iy, iz = cell_coord(x, ox, inv, nx), cell_coord(y, oy, inv, ny), cell_coord(z, oz, inv, nz)
     local = (iz * int(ny) + iy) * int(nx) + ix
-    flag = items[int(s0f) + local]
+    flag = items[int(s0f) + local] & INSIDE_BITS
     if flag == UNKNOWN:
         return False
     c = int(c0f) + local
@@ -344,7 +344,23 @@ def _cell_flag(items, G, x, y, z):
     if x < ox or x > hx or y < oy or y > hy or z < oz or z > hz:
         return 0
     ix, iy, iz = cell_coord(x, ox, inv, nx), cell_coord(y, oy, inv, ny), cell_coord(z, oz, inv, nz)
-    return items[int(s0f) + (iz * int(ny) + iy) * int(nx) + ix]
+    return items[int(s0f) + (iz * int(ny) + iy) * int(nx) + ix] & INSIDE_BITS
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _clear(items, G, x0, y0, z0, x1, y1, z1, short, closed):
+    """Whether the segment q0 -> q1 (rest frame, finite) surely meets nothing and ends
+    where nothing is to be done: it is shorter than ``short`` [m] (a cell less the
+    search's reach, on every axis), so its box lies in the 27 cells about q1's
+    (clamped) cell, that cell's status lacks NEAR (none of them holds a triangle),
+    and, for a closed mesh, its centre is not inside (a point inside is pushed out
+    by the full path). One read per point: the kernels' fast path."""
+    if not (abs(x1 - x0) < short and abs(y1 - y0) < short and abs(z1 - z0) < short):
+        return False
+    ox, oy, oz, _, _, _, _, inv, nx, ny, nz, _, s0f, _ = G
+    ix, iy, iz = cell_coord(x1, ox, inv, nx), cell_coord(y1, oy, inv, ny), cell_coord(z1, oz, inv, nz)
+    st = items[int(s0f) + (iz * int(ny) + iy) * int(nx) + ix]
+    return (st & NEAR) == 0 and not (closed and (st & INSIDE_BITS) != 0)
 
 
 @njit(**EXACT_OPTIONS)
@@ -481,12 +497,15 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         keep = 1.0 - min(max(m[24], 0.0), 1.0)
         margin = max(m[25], 0.0)
         closed = g[G_CLOSED] != 0.0
+        short = g[G_H] - 2.0 * reach
         for p in range(lo, hi):
             if free[p] == 0.0:
                 continue
             x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
             x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
+                continue
+            if _clear(items, G, x0, y0, z0, x1, y1, z1, short, closed):
                 continue
             _, t, _, outer = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             moved = t >= 0
@@ -540,6 +559,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         now = _frame(m, 0)
         margin = max(m[25], 0.0)
         closed = g[G_CLOSED] != 0.0
+        short = g[G_H] - 2.0 * reach
         for p in range(lo, hi):
             if free[p] == 0.0:
                 continue
@@ -550,6 +570,8 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
             x0, y0, z0 = _to_rest(now, qx, qy, qz)
             x1, y1, z1 = _to_rest(now, px, py, pz)
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
+                continue
+            if _clear(items, G, x0, y0, z0, x1, y1, z1, short, False):
                 continue
             _, t, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             if t < 0:

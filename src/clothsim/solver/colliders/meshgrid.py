@@ -21,12 +21,17 @@ arrays the kernels of :mod:`.mesh` read:
 ``mesh_cells`` int64 (C + 1,)
     CSR starts: cell c of mesh k is number ``mesh_grid[k, G_CELL0] + (iz*ny + iy)*nx + ix``
     and holds the triangles ``mesh_items[mesh_cells[c]:mesh_cells[c + 1]]``.
-``mesh_items`` int32 (mesh_cells[-1] + C_closed,)
+``mesh_items`` int32 (mesh_cells[-1] + C,)
     first the cells' triangle lists (global triangle numbers, rows of
     ``mesh_tris``): a triangle is listed in every cell its bounding box
-    overlaps. Then, for each closed mesh, one entry per cell: 1 when the cell's
-    centre is inside the solid, 0 when outside, 2 when the centre lies on the
-    surface (unknown; the inside test of that cell then answers 'outside').
+    overlaps and its plane passes through (the cell grown by CELL_PAD). Then,
+    for each mesh, one status entry per cell (from ``G_STATUS0``): its low two
+    bits (``& INSIDE_BITS``) for a closed mesh 1 when the cell's centre is
+    inside the solid, 0 when outside, 2 when the centre lies on the surface
+    (unknown; the inside test of that cell then answers 'outside'), 0 for an
+    open mesh; plus NEAR when the cell or one of its 26 neighbours holds a
+    triangle. A segment shorter than a cell that ends in a cell without NEAR
+    meets no triangle: the kernels skip it at the cost of one read.
 
 The cell size is CELL_OVER_EDGE times the mean edge length, enlarged where the
 grid would have more than MAX_CELLS cells or its lists more than MAX_ITEMS
@@ -42,8 +47,11 @@ from numba import njit
 
 from ..shared import EXACT_OPTIONS
 
-CELL_OVER_EDGE = 1.0
-"""cell size over the mean edge length of the mesh's triangles"""
+CELL_OVER_EDGE = 0.5
+"""cell size over the mean edge length of the mesh's triangles: at half an edge a
+cell of a smooth mesh holds about four triangles and a short segment meets one
+or two cells (at one edge, seven and two cells), which halves the triangles a
+point near the surface tries; the results do not depend on it"""
 
 MAX_CELLS = 1 << 22
 """most cells of one mesh's grid; a larger mesh gets coarser cells"""
@@ -62,6 +70,17 @@ G_ORIGIN, G_H, G_INV_H, G_DIMS, G_CELL0, G_TRI0, G_NTRI, G_CLOSED, G_HI, G_STATU
 
 UNKNOWN = 2
 """a cell's inside flag when its centre lies on the surface"""
+
+INSIDE_BITS = 3
+"""the bits of a cell's status that hold its inside flag"""
+
+NEAR = 4
+"""the bit of a cell's status set when the cell or a neighbour holds a triangle"""
+
+CELL_PAD = 1e-5
+"""how far (in units of the mesh's size plus a cell) a cell is grown before the test
+of a triangle's plane against it: well beyond the kernels' reach (WALK_REACH) and
+the rounding of the test, so no triangle is left out of a cell it touches"""
 
 
 # --- cells -----------------------------------------------------------------------
@@ -93,14 +112,40 @@ def _tri_cells(tris, t, g):
             cell_coord(z0, o2, inv, nz), cell_coord(z1, o2, inv, nz))
 
 
+@njit(**EXACT_OPTIONS, inline="always")
+def _plane_meets(tris, t, g, ix, iy, iz, pad):
+    """Whether the plane of triangle ``t`` passes through cell (ix, iy, iz) of grid row
+    ``g`` grown by ``pad`` [m] on every side: the distance of the cell's centre from
+    the plane against the cell's half-extent along the normal. True for a zero-area
+    triangle (normal zero), so that nothing finite is ever left out."""
+    h = g[G_H]
+    cx = g[G_ORIGIN] + (ix + 0.5) * h
+    cy = g[G_ORIGIN + 1] + (iy + 0.5) * h
+    cz = g[G_ORIGIN + 2] + (iz + 0.5) * h
+    nx, ny, nz = tris[t, 9], tris[t, 10], tris[t, 11]
+    d = abs(nx * cx + ny * cy + nz * cz - tris[t, 12])
+    return not d > (0.5 * h + pad) * (abs(nx) + abs(ny) + abs(nz))
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _cell_pad(g):
+    """CELL_PAD [m] for grid row ``g``"""
+    extent = max(g[G_HI] - g[G_ORIGIN], g[G_HI + 1] - g[G_ORIGIN + 1], g[G_HI + 2] - g[G_ORIGIN + 2])
+    return CELL_PAD * (max(extent, 0.0) + g[G_H])
+
+
 @njit(**EXACT_OPTIONS)
 def _count_items(tris, g):
     """How many list entries the grid row ``g`` makes of its mesh's triangles."""
     total = 0
     t0, nt = int(g[G_TRI0]), int(g[G_NTRI])
+    pad = _cell_pad(g)
     for t in range(t0, t0 + nt):
         ix0, ix1, iy0, iy1, iz0, iz1 = _tri_cells(tris, t, g)
-        total += (ix1 - ix0 + 1) * (iy1 - iy0 + 1) * (iz1 - iz0 + 1)
+        for iz in range(iz0, iz1 + 1):
+            for iy in range(iy0, iy1 + 1):
+                for ix in range(ix0, ix1 + 1):
+                    total += _plane_meets(tris, t, g, ix, iy, iz, pad)
     return total
 
 
@@ -112,13 +157,15 @@ def _fill_cells(tris, g, cells, items, item0):
     nx, ny, nz = int(g[G_DIMS]), int(g[G_DIMS + 1]), int(g[G_DIMS + 2])
     c0, t0, nt = int(g[G_CELL0]), int(g[G_TRI0]), int(g[G_NTRI])
     ncells = nx * ny * nz
+    pad = _cell_pad(g)
     count = np.zeros(ncells + 1, dtype=np.int64)
     for t in range(t0, t0 + nt):
         ix0, ix1, iy0, iy1, iz0, iz1 = _tri_cells(tris, t, g)
         for iz in range(iz0, iz1 + 1):
             for iy in range(iy0, iy1 + 1):
                 for ix in range(ix0, ix1 + 1):
-                    count[(iz * ny + iy) * nx + ix + 1] += 1
+                    if _plane_meets(tris, t, g, ix, iy, iz, pad):
+                        count[(iz * ny + iy) * nx + ix + 1] += 1
     for c in range(ncells):
         count[c + 1] += count[c]
     for c in range(ncells + 1):
@@ -128,9 +175,10 @@ def _fill_cells(tris, g, cells, items, item0):
         for iz in range(iz0, iz1 + 1):
             for iy in range(iy0, iy1 + 1):
                 for ix in range(ix0, ix1 + 1):
-                    c = (iz * ny + iy) * nx + ix
-                    items[item0 + count[c]] = t
-                    count[c] += 1
+                    if _plane_meets(tris, t, g, ix, iy, iz, pad):
+                        c = (iz * ny + iy) * nx + ix
+                        items[item0 + count[c]] = t
+                        count[c] += 1
 
 
 # --- inside flags of the cells of a closed mesh --------------------------------------
@@ -274,9 +322,11 @@ def _with_planes(tris: np.ndarray) -> np.ndarray:
     return out
 
 
-def _grid_row(tris: np.ndarray, closed: bool, tri0: int) -> np.ndarray:
-    """A grid row for one mesh's triangles (cell offsets left for the caller), its cell
-    size from the mean edge length, coarser where the caps ask for it."""
+def _grid_row(rows: np.ndarray, closed: bool, tri0: int) -> np.ndarray:
+    """A grid row for one mesh's triangles (``rows`` (F, TRI_FIELDS), with their planes;
+    cell offsets left for the caller), its cell size from the mean edge length,
+    coarser where the caps ask for it."""
+    tris = rows[:, :9]
     g = np.zeros(GRID_FIELDS)
     g[G_TRI0], g[G_NTRI], g[G_CLOSED], g[G_STATUS0] = tri0, len(tris), float(closed), -1.0
     if not len(tris):  # an inverted box: every query misses it
@@ -298,11 +348,28 @@ def _grid_row(tris: np.ndarray, closed: bool, tri0: int) -> np.ndarray:
             continue
         g[G_H], g[G_INV_H], g[G_DIMS:G_DIMS + 3] = h, 1.0 / h, dims
         g[G_TRI0] = 0.0  # counted on this mesh's triangles alone
-        if _count_items(tris, g) > MAX_ITEMS:
+        if _count_items(rows, g) > MAX_ITEMS:
             h *= 2.0
             continue
         g[G_TRI0] = tri0
         return g
+
+
+def _mark_near(g: np.ndarray, cells: np.ndarray, status: np.ndarray) -> None:
+    """Sets NEAR in ``status`` (the cells of grid row ``g``) for every cell that holds a
+    triangle or touches one that does (faces, edges or corners)."""
+    nx, ny, nz = (int(v) for v in g[G_DIMS:G_DIMS + 3])
+    c0 = int(g[G_CELL0])
+    busy = (np.diff(cells[c0:c0 + nx * ny * nz + 1]) > 0).reshape(nz, ny, nx)
+    for axis in range(3):  # dilation by one cell, one axis at a time
+        grown = busy.copy()
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        grown[tuple(lo)] |= busy[tuple(hi)]
+        grown[tuple(hi)] |= busy[tuple(lo)]
+        busy = grown
+    status |= np.where(busy.ravel(), NEAR, 0).astype(status.dtype)
 
 
 def pack_meshes(shapes: Sequence) -> dict | None:
@@ -315,24 +382,25 @@ def pack_meshes(shapes: Sequence) -> dict | None:
     parts, rows = [], []
     tri0 = 0
     for shape in shapes:
-        tris, closed = _mesh_triangles(shape)
+        corners, closed = _mesh_triangles(shape)
+        tris = _with_planes(corners)
         rows.append(_grid_row(tris, closed, tri0))
         parts.append(tris)
         tri0 += len(tris)
-    mesh_tris = _with_planes(np.concatenate(parts, axis=0)) if tri0 else np.zeros((0, TRI_FIELDS))
+    mesh_tris = np.concatenate(parts, axis=0) if tri0 else np.zeros((0, TRI_FIELDS))
     grid = np.stack(rows)
     ncells = [int(np.prod(g[G_DIMS:G_DIMS + 3])) for g in grid]
     nitems = [_count_items(mesh_tris, g) for g in grid]
     grid[:, G_CELL0] = np.concatenate([[0], np.cumsum(ncells)[:-1]])
     cells = np.zeros(sum(ncells) + 1, dtype=np.int64)
-    nstatus = sum(n for n, g in zip(ncells, grid) if g[G_CLOSED])
-    items = np.zeros(sum(nitems) + nstatus, dtype=np.int32)
+    items = np.zeros(sum(nitems) + sum(ncells), dtype=np.int32)
     item0, status0 = 0, sum(nitems)
     for k, g in enumerate(grid):
         _fill_cells(mesh_tris, g, cells, items, np.int64(item0))
         item0 += nitems[k]
+        g[G_STATUS0] = status0
         if g[G_CLOSED]:
-            g[G_STATUS0] = status0
             _fill_status(mesh_tris, g, cells, items, np.int64(status0))
-            status0 += ncells[k]
+        _mark_near(g, cells, items[status0:status0 + ncells[k]])
+        status0 += ncells[k]
     return dict(mesh_tris=mesh_tris, mesh_grid=grid, mesh_cells=cells, mesh_items=items)
