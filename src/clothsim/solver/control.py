@@ -9,7 +9,7 @@ from .groups import Control
 from .handles import pack_handles
 from .wind import pack_wind
 
-MESH_FIELDS = ("mesh_tris", "mesh_grid", "mesh_cells", "mesh_items")
+MESH_FIELDS = ("mesh_tris", "mesh_grid", "mesh_cells", "mesh_items", "mesh_slabs")
 """the fields of a mesh collider's shape: built once per scene, not per frame"""
 
 

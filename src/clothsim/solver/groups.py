@@ -108,7 +108,9 @@ class Control(NamedTuple):
     mesh_cells: np.ndarray | None
     """where each cell's triangles start in ``mesh_items``, int64 (cells + 1,)"""
     mesh_items: np.ndarray | None
-    """the triangles of each cell, then each closed mesh's cell inside flags, int32"""
+    """the triangles of each cell, then each mesh's cell status entries, int32"""
+    mesh_slabs: np.ndarray | None
+    """each cell's clear side, float64 (S, 4): see :mod:`.colliders.meshslab`"""
     moved_points: np.ndarray | None
     """the points of every handle, int64 (H,): see :mod:`.handles`"""
     moved_to: np.ndarray | None

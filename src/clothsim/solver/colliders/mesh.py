@@ -48,7 +48,8 @@ from numba import njit
 
 from ..shared import EXACT_OPTIONS
 from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, INSIDE_BITS, NEAR,
-                       T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, pack_meshes)
+                       T_NORMAL, T_OFFSET, UNKNOWN, cell_coord)
+from .meshslab import clear_side, pack_meshes
 
 POSE_FIELDS = 26
 """a pose row: R_now (9), o_now (3), R_before (9), o_before (3), friction, margin"""
@@ -482,6 +483,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
     if meshes is None:
         return
     tris, grid, cells, items = control.mesh_tris, control.mesh_grid, control.mesh_cells, control.mesh_items
+    slabs = control.mesh_slabs
     if meshes.shape[0] == 0:
         return
     lo = max(lo, 0)
@@ -505,7 +507,8 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
             x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
                 continue
-            if _clear(items, G, x0, y0, z0, x1, y1, z1, short, closed):
+            if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, closed)
+                    or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed)):
                 continue
             _, t, _, outer = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             moved = t >= 0
@@ -513,6 +516,10 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
             if moved:
                 sx, sy, sz = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
                 x, y, z = x0 + keep * (sx - x0), y0 + keep * (sy - y0), z0 + keep * (sz - z0)
+                if clear_side(items, slabs, G, x0, y0, z0, x, y, z, closed):
+                    wx, wy, wz = _to_world(now, x, y, z)  # crosses nothing, ends outside
+                    P[0, p], P[1, p], P[2, p] = wx, wy, wz
+                    continue
                 _, again, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x, y, z, reach, closed)
                 if again >= 0:
                     x, y, z = x0, y0, z0
@@ -545,6 +552,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
     if meshes is None:
         return
     tris, grid, cells, items = control.mesh_tris, control.mesh_grid, control.mesh_cells, control.mesh_items
+    slabs = control.mesh_slabs
     if meshes.shape[0] == 0:
         return
     lo = max(lo, 0)
@@ -571,15 +579,17 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
             x1, y1, z1 = _to_rest(now, px, py, pz)
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
                 continue
-            if _clear(items, G, x0, y0, z0, x1, y1, z1, short, False):
+            if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, False)
+                    or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, False)):
                 continue
             _, t, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             if t < 0:
                 continue
             x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
-            _, again, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x, y, z, reach, closed)
-            if again >= 0:
-                x, y, z = x0, y0, z0
+            if not clear_side(items, slabs, G, x0, y0, z0, x, y, z, False):
+                _, again, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x, y, z, reach, closed)
+                if again >= 0:
+                    x, y, z = x0, y0, z0
             wx, wy, wz = _to_world(now, x, y, z)
             P[0, p], P[1, p], P[2, p] = wx, wy, wz
 

@@ -1,7 +1,8 @@
 """Triangle-mesh colliders packed into plain arrays: the triangles and a uniform grid per mesh.
 
-:func:`pack_meshes` turns the scene's meshes (in their rest pose) into the
-arrays the kernels of :mod:`.mesh` read:
+:func:`pack_grids` turns the scene's meshes (in their rest pose) into the
+arrays the kernels of :mod:`.mesh` read (:func:`.meshslab.pack_meshes` adds
+each cell's clear side):
 
 ``mesh_tris`` float64 (T, TRI_FIELDS)
     the corners (ax, ay, az, bx, by, bz, cx, cy, cz) [m] of every triangle of
@@ -29,9 +30,10 @@ arrays the kernels of :mod:`.mesh` read:
     bits (``& INSIDE_BITS``) for a closed mesh 1 when the cell's centre is
     inside the solid, 0 when outside, 2 when the centre lies on the surface
     (unknown; the inside test of that cell then answers 'outside'), 0 for an
-    open mesh; plus NEAR when the cell or one of its 26 neighbours holds a
-    triangle. A segment shorter than a cell that ends in a cell without NEAR
-    meets no triangle: the kernels skip it at the cost of one read.
+    open mesh; plus HOLDS when the cell holds a triangle and NEAR when it or
+    one of its 26 neighbours does; above these bits (from ``meshslab.SLAB_SHIFT``) the cell's row in
+    ``mesh_slabs`` plus one. A segment shorter than a cell that ends in a cell
+    without NEAR meets no triangle: the kernels skip it at the cost of one read.
 
 The cell size is CELL_OVER_EDGE times the mean edge length, enlarged where the
 grid would have more than MAX_CELLS cells or its lists more than MAX_ITEMS
@@ -76,6 +78,9 @@ INSIDE_BITS = 3
 
 NEAR = 4
 """the bit of a cell's status set when the cell or a neighbour holds a triangle"""
+
+HOLDS = 8
+"""the bit of a cell's status set when the cell holds a triangle"""
 
 CELL_PAD = 1e-5
 """how far (in units of the mesh's size plus a cell) a cell is grown before the test
@@ -356,11 +361,13 @@ def _grid_row(rows: np.ndarray, closed: bool, tri0: int) -> np.ndarray:
 
 
 def _mark_near(g: np.ndarray, cells: np.ndarray, status: np.ndarray) -> None:
-    """Sets NEAR in ``status`` (the cells of grid row ``g``) for every cell that holds a
-    triangle or touches one that does (faces, edges or corners)."""
+    """Sets HOLDS in ``status`` (the cells of grid row ``g``) for every cell that holds a
+    triangle, and NEAR for those and every cell that touches one (faces, edges or
+    corners)."""
     nx, ny, nz = (int(v) for v in g[G_DIMS:G_DIMS + 3])
     c0 = int(g[G_CELL0])
     busy = (np.diff(cells[c0:c0 + nx * ny * nz + 1]) > 0).reshape(nz, ny, nx)
+    status |= np.where(busy.ravel(), HOLDS, 0).astype(status.dtype)
     for axis in range(3):  # dilation by one cell, one axis at a time
         grown = busy.copy()
         lo = [slice(None)] * 3
@@ -372,7 +379,7 @@ def _mark_near(g: np.ndarray, cells: np.ndarray, status: np.ndarray) -> None:
     status |= np.where(busy.ravel(), NEAR, 0).astype(status.dtype)
 
 
-def pack_meshes(shapes: Sequence) -> dict | None:
+def pack_grids(shapes: Sequence) -> dict | None:
     """The mesh fields of the solver's control group from objects with ``vertices``
     (V, 3) [m] in the rest pose, ``triangles`` (F, 3) and ``closed``; None when there
     are none. Keys ``mesh_tris``, ``mesh_grid``, ``mesh_cells``, ``mesh_items``:
