@@ -84,14 +84,20 @@ def clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed):
         return _slab_holds(items, slabs, s0, end, x0, y0, z0, x1, y1, z1)
     if abs(ax - bx) > 1 or abs(ay - by) > 1 or abs(az - bz) > 1:
         return False
-    return _cells_hold(items, slabs, s0, inx, iny, min(ax, bx), max(ax, bx), min(ay, by), max(ay, by),
-                       min(az, bz), max(az, bz), x0, y0, z0, x1, y1, z1)
+    return _cells_hold(items, slabs, s0, (inx, iny),
+                       (min(ax, bx), max(ax, bx), min(ay, by), max(ay, by), min(az, bz), max(az, bz)),
+                       (x0, y0, z0, x1, y1, z1))
 
 
 @njit(**EXACT_OPTIONS)
-def _cells_hold(items, slabs, s0, inx, iny, ix0, ix1, iy0, iy1, iz0, iz1, x0, y0, z0, x1, y1, z1):
-    """:func:`_slab_holds` for every cell of the inclusive ranges: a call of its own,
-    out of the kernels' loops, for a segment that crosses a cell face."""
+def _cells_hold(items, slabs, s0, dims, span, seg):
+    """:func:`_slab_holds` for the segment ``seg`` (x0, y0, z0, x1, y1, z1) in every cell
+    of the inclusive ranges ``span`` (ix0, ix1, iy0, iy1, iz0, iz1) of a grid ``dims``
+    (nx, ny) cells across: a call of its own, out of the kernels' loops, for a
+    segment that crosses a cell face."""
+    inx, iny = dims
+    ix0, ix1, iy0, iy1, iz0, iz1 = span
+    x0, y0, z0, x1, y1, z1 = seg
     for iz in range(iz0, iz1 + 1):
         for iy in range(iy0, iy1 + 1):
             for ix in range(ix0, ix1 + 1):
