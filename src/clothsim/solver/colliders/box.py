@@ -120,7 +120,8 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
     for k in range(rows.shape[0]):
         row = rows[k]
         aligned = row[3] == 1.0 and row[7] == 1.0 and row[11] == 1.0
-        _common(P, R, free, row, lo, marked, carry, friction, aligned)
+        if _common(P, R, free, row, lo, marked, carry, friction, aligned) == 0:
+            continue  # none marked: the second pass has nothing to do
         cx, cy, cz = row[0], row[1], row[2]
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
                                                         row[9], row[10], row[11])
@@ -152,8 +153,9 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     reference position was outside of (a cloth resting on a box crosses its
     face every substep) is placed; ``marked`` is set for the others that end
     inside, and, where some point moved farther than the box's thinnest side,
-    for those whose segment's bounding box meets the box (:func:`_mark_through`). ``aligned``: the box's axes are the
-    world's, and the loop skips the turns into and out of its frame."""
+    for those whose segment's bounding box meets the box (:func:`_mark_through`).
+    ``aligned``: the box's axes are the world's, and the loop skips the turns
+    into and out of its frame. Returns how many points it marked."""
     n = marked.shape[0]
     x, y, z = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
     rx, ry, rz = R[0, lo:lo + n], R[1, lo:lo + n], R[2, lo:lo + n]
@@ -169,6 +171,7 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     # box's thinnest side can, so the points are looked at again only after one
     thinnest2 = 4.0 * min(hu, min(hv, hw)) ** 2
     far = 0
+    count = 0
     for p in range(n):
         mx, my, mz = rx[p], ry[p], rz[p]
         if carry:
@@ -200,19 +203,24 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
         y[p] = ny if simple else y[p]
         z[p] = nz if simple else z[p]
         # the rest that end inside: near an edge or corner, or inside from before
-        marked[p] = inside1 & (fr[p] != 0.0) & (simple ^ True)
+        mark = inside1 & (fr[p] != 0.0) & (simple ^ True)
+        marked[p] = mark
+        count += np.int64(mark)
         du, dv, dw = u1 - u0, v1 - v0, w1 - w0
         far += np.int64(du * du + dv * dv + dw * dw >= thinnest2)
     if far > 0:
-        _mark_through(P, R, free, row, lo, marked, carry)
+        count += _mark_through(P, R, free, row, lo, marked, carry)
+    return count
 
 
 @njit(**KERNEL_OPTIONS)
 def _mark_through(P, R, free, row, lo, marked, carry):
     """Also mark, for the box of ``row``, every free point whose segment's bounding
     box in the box's frame meets the box: those that may have passed through it
-    in one substep (a fast point, a thin box)."""
+    in one substep (a fast point, a thin box); returns how many it marked (some
+    perhaps marked already: the caller only asks whether any are)."""
     n = marked.shape[0]
+    count = 0
     cx, cy, cz = row[0], row[1], row[2]
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
                                                     row[9], row[10], row[11])
@@ -232,6 +240,8 @@ def _mark_through(P, R, free, row, lo, marked, carry):
         through = ((min(u0, u1) < hu) & (max(u0, u1) > -hu) & (min(v0, v1) < hv) & (max(v0, v1) > -hv)
                    & (min(w0, w1) < hw) & (max(w0, w1) > -hw) & (free[p] != 0.0) & (inside1 ^ True))
         marked[q] = marked[q] | through
+        count += np.int64(through)
+    return count
 
 
 @njit(**KERNEL_OPTIONS)
