@@ -8,7 +8,8 @@ library, so ``clothsim --help`` and ``--version`` answer at once; each
 ``run`` imports what its work needs.
 
 Every :class:`~clothsim.errors.ClothsimError` becomes one line on stderr
-and exit code 2 (argparse's own usage errors too, see :class:`Parser`); every :class:`~clothsim.errors.SceneWarning` one line
+and exit code 2 (argparse's own usage errors too, see :class:`Parser`);
+every :class:`~clothsim.errors.SceneWarning` one line
 ``clothsim: warning: ...`` on stderr, each time it is raised.
 """
 
