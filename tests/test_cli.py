@@ -170,6 +170,33 @@ def test_module_runs_without_traceback_on_missing_file(tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "no such file" in r.stderr
 
 
+USAGE_ERRORS = [
+    (["simulate", "sphere", "--no-such-option"], "simulate: unrecognized arguments: --no-such-option"),
+    (["simulate", "--no-such-option"], "simulate: the following arguments are required: scene"),
+    (["render"], "render: the following arguments are required: scene, -o/--output"),
+    (["render", "sphere", "-o"], "render: argument -o/--output: expected one argument"),
+    (["sweep", "sphere", "-o", "out"], "sweep: the following arguments are required: --vary"),
+    (["view", "sphere", "--shadr", "Phong"], "view: unrecognized arguments: --shadr Phong"),
+    (["scenes", "extra"], "scenes: unrecognized arguments: extra"),
+    (["no-such-command"], "argument COMMAND: invalid choice: 'no-such-command'"),
+    ([], "the following arguments are required: COMMAND"),
+]
+
+
+@pytest.mark.parametrize("argv,message", USAGE_ERRORS, ids=[" ".join(a) or "(none)" for a, _ in USAGE_ERRORS])
+def test_argparse_usage_errors_are_one_line_and_exit_2(argv, message):
+    """argparse's own errors (unknown option, missing argument, bad choice): one
+    line naming the subcommand and its --help, no usage block, exit 2"""
+    r = subprocess.run([sys.executable, "-m", "clothsim", *argv], capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert r.stdout == ""
+    lines = r.stderr.splitlines()
+    assert len(lines) == 1 and r.stderr.endswith("\n"), r.stderr
+    assert lines[0].startswith("clothsim: error: ") and message in lines[0], lines
+    command = argv[0] if argv and argv[0] != "no-such-command" else None
+    assert lines[0].endswith(f"(see 'clothsim {command} --help')" if command else "(see 'clothsim --help')")
+
+
 @pytest.mark.parametrize("flag", ["--help", "--version"])
 def test_help_and_version_load_no_numba(flag):
     """--help and --version answer without importing numba (nor numpy or a GL library)"""

@@ -74,6 +74,71 @@ def test_simulate_keeps_an_export_that_appeared_during_the_run(tmp_path, write_s
     assert out.read_bytes() != b"theirs"
 
 
+@pytest.mark.parametrize("background", [True, False])
+def test_export_sequence_keeps_a_frame_file_that_appeared_during_the_run(tmp_path, background):
+    """each frame is placed exclusively, as every other output: a file made at a
+    later frame's name after the run began is kept, the run stops with
+    OutputError, and no temporary file is left; with overwrite it is replaced"""
+    from clothsim import Simulation
+    from clothsim.export.objseq import ObjSequence
+    from clothsim.scene import parse_scene
+
+    sim = Simulation(parse_scene(small_scene()))
+    for overwrite in (False, True):
+        folder = tmp_path / f"seq_{overwrite}"
+        folder.mkdir()
+        theirs = folder / "frame_0003.obj"
+        seq = ObjSequence(folder, sim.model.uvs, sim.model.triangles, background=background, overwrite=overwrite)
+        theirs.write_text("theirs")  # after the start, before frame 3 is written
+        if overwrite:
+            with seq:
+                for k in range(6):
+                    seq.write(k, sim.positions)
+            assert theirs.read_text().startswith("# clothsim")
+            assert sorted(os.listdir(folder)) == [f"frame_{k:04d}.obj" for k in range(6)]
+            continue
+        with pytest.raises(OutputError, match="frame_0003.obj: a file appeared there"):
+            for k in range(40):  # the error comes from a later write() or from close()
+                seq.write(k, sim.positions)
+            seq.close()
+        seq.close()  # once raised, closing again is quiet
+        assert theirs.read_text() == "theirs"
+        names = sorted(os.listdir(folder))
+        assert not [n for n in names if n.startswith(".")], names  # no temporary file left
+        assert names[:4] == [f"frame_{k:04d}.obj" for k in range(4)]  # the frames before it were written
+
+
+def test_simulate_keeps_a_sequence_frame_that_appeared_during_the_run(tmp_path, write_scene, monkeypatch, capsys):
+    """``--export-sequence``: a frame file made while the run goes is kept, the run
+    ends with one line and exit 2; with --overwrite it is replaced"""
+    from clothsim.cli import simulate
+
+    folder = tmp_path / "seq"
+    theirs = folder / "frame_0002.obj"
+    real = simulate.run_with_progress
+
+    def run_and_meanwhile(*args, **kwargs):
+        theirs.write_text("theirs")  # the folder is checked and frame 0 is on its way
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(simulate, "run_with_progress", run_and_meanwhile)
+    argv = ["simulate", str(write_scene(small_scene())), "--seconds", "0.1", "--no-progress",
+            "--export-sequence", str(folder)]
+    assert main(argv) == 2
+    err = [line for line in capsys.readouterr().err.strip().splitlines()
+           if not line.startswith("clothsim: compiling")]  # said once, on a cold kernel cache
+    assert len(err) == 1 and err[0].startswith("clothsim: error:") and "frame_0002.obj" in err[0] \
+        and "appeared there" in err[0] and "--overwrite" in err[0], err
+    assert theirs.read_text() == "theirs"
+    assert not [p.name for p in folder.iterdir() if p.name.startswith(".")]
+    for p in folder.iterdir():
+        if p != theirs:
+            p.unlink()
+    assert main(argv + ["--overwrite"]) == 0
+    assert theirs.read_text().startswith("# clothsim")
+    assert len(list(folder.glob("frame_*.obj"))) == 10  # frames 0..9: 0.1 s at 90 frames/s
+
+
 def _parent_cases(tmp_path: Path) -> dict[str, Path]:
     (tmp_path / "a_file").write_text("x")
     cases = {"missing": tmp_path / "no_such_folder" / "out", "a file": tmp_path / "a_file" / "out"}

@@ -69,3 +69,42 @@ def test_threads_choose_the_solver_parts():
 def test_threads_must_be_positive():
     with pytest.raises(ValueError, match="threads"):
         Simulation.from_file(SCENES / "pinned2.json", threads=0)
+
+
+@pytest.mark.parametrize("seconds", [float("nan"), float("inf"), -float("inf"), -0.5, 1e12, 1e308, "1", None, True])
+def test_run_refuses_seconds_that_are_not_a_bounded_count_of_frames(seconds):
+    """NaN, inf, a negative time, one of more than RUN_FRAMES_MAX frames (which
+    would step for days) or a non-number: ValueError naming seconds, before
+    any step; clothsim.record refuses the same"""
+    import clothsim
+
+    sim = sim_of()
+    with pytest.raises(ValueError, match="seconds"):
+        sim.run(seconds)
+    with pytest.raises(ValueError, match="seconds"):
+        clothsim.record(sim, seconds)
+    assert sim.frame == 0 and sim.time == 0.0
+
+
+def test_run_frames_counts_up_to_the_bound_and_no_further():
+    from clothsim.scene_limits import RUN_FRAMES_MAX
+    from clothsim.simulation import run_frames
+
+    assert run_frames(0.1, 90.0) == 9 and run_frames(0, 90.0) == 0 and run_frames(np.float32(1.0), 60.0) == 60
+    assert run_frames(RUN_FRAMES_MAX / 100.0, 100.0) == RUN_FRAMES_MAX
+    with pytest.raises(ValueError, match=f"at most {RUN_FRAMES_MAX:,}"):
+        run_frames((RUN_FRAMES_MAX + 1) / 100.0, 100.0)
+
+
+@pytest.mark.parametrize("substeps", [-1, 1.5, float("nan"), True, 100_001, 10**30])
+def test_step_refuses_substeps_that_are_not_a_whole_bounded_count(substeps):
+    """a negative count ran the clock backwards, a float reached the kernel;
+    each is ValueError naming substeps, and nothing moves"""
+    sim = sim_of()
+    start = sim.positions.copy()
+    with pytest.raises(ValueError, match="substeps"):
+        sim.step(substeps=substeps)
+    assert sim.frame == 0 and sim.time == 0.0
+    np.testing.assert_array_equal(sim.positions, start)
+    sim.step(substeps=np.int64(2))  # a NumPy whole number is a whole number
+    assert sim.time == pytest.approx(2 * sim.params.dt)

@@ -129,6 +129,21 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
+def _wait_for_first_record(proc, out: Path, limit_s: float = 240) -> dict:
+    """the record of run 000 once it is finished (not pending), the sweep still running"""
+    deadline = time.monotonic() + limit_s
+    record = {}
+    while ("frames" not in record or record.get("pending")) and time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.2)
+        for path in (out / "records").glob("000_*.json"):
+            try:
+                record = json.loads(path.read_text())
+            except (OSError, ValueError):
+                pass
+    return record
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="finds the workers through /proc")
 @pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)], ids=["SIGTERM", "SIGINT"])
 def test_a_killed_sweep_stops_its_workers_and_keeps_its_finished_runs(tmp_path, write_scene, sig, code):
@@ -144,16 +159,7 @@ def test_a_killed_sweep_stops_its_workers_and_keeps_its_finished_runs(tmp_path, 
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                             start_new_session=True)  # a signal to the sweep alone, not to its group
     try:
-        deadline = time.monotonic() + 240
-        record = {}
-        while ("frames" not in record or record.get("pending")) and time.monotonic() < deadline:
-            assert proc.poll() is None, proc.communicate()
-            time.sleep(0.2)
-            for path in (out / "records").glob("000_*.json"):
-                try:
-                    record = json.loads(path.read_text())
-                except (OSError, ValueError):
-                    pass
+        record = _wait_for_first_record(proc, out)
         workers = _children(proc.pid)
         assert workers and all(_alive(w) for w in workers)
         proc.send_signal(sig)
@@ -175,3 +181,55 @@ def test_a_killed_sweep_stops_its_workers_and_keeps_its_finished_runs(tmp_path, 
     todo, done = SweepDir(out).plan(plan_runs(json.loads(scene.read_text()), str(scene),
                                               ["cloth.num_height_points=4,400,400"], 60.0, "Phong", (64, 64)))
     assert [s.index for s in done] == [0] and [s.index for s in todo] == [1, 2]
+
+
+def _cluster_work(client) -> tuple[int, int]:
+    """(tasks the scheduler holds, tasks executing on the workers)"""
+    held = client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))
+    executing = sum(client.run(lambda dask_worker: dask_worker.state.executing_count).values())
+    return held, executing
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)], ids=["SIGTERM", "SIGINT"])
+def test_an_interrupted_dask_sweep_stops_its_runs_on_the_cluster_and_keeps_its_finished_ones(
+        tmp_path, write_scene, dask_cluster, sig, code):
+    """--scheduler: the cluster is the user's (its workers are not the sweep's to
+    end), but the sweep's runs are: killed while two 60 s runs of a 16x400 cloth
+    execute, it exits with the signal's code, its queued run leaves the
+    scheduler, the running ones stop within seconds (they would run for
+    minutes), the workers stay up, the finished run is kept and a rerun
+    skips it"""
+    from distributed import Client
+
+    scene = write_scene(small_scene())
+    out = tmp_path / "sweep"
+    vary = "cloth.num_height_points=4,400,400,400"
+    argv = [sys.executable, "-m", "clothsim", "sweep", str(scene), "--vary", vary, "--seconds", "60",
+            "--size", "64x64", "--no-progress", "-o", str(out), "--scheduler", dask_cluster]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    with Client(dask_cluster, timeout="30s") as client:
+        try:
+            record = _wait_for_first_record(proc, out)
+            deadline = time.monotonic() + 60
+            while _cluster_work(client)[1] < 2 and time.monotonic() < deadline:
+                time.sleep(0.2)
+            assert _cluster_work(client)[1] == 2, "both workers should be running a long run"
+            proc.send_signal(sig)
+            _, err = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        assert proc.returncode == code, err
+        assert "clothsim: interrupted" in err and "Traceback" not in err, err
+        deadline = time.monotonic() + 20
+        while _cluster_work(client) != (0, 0) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert _cluster_work(client) == (0, 0), "a run of the stopped sweep went on on the cluster"
+        assert len(client.scheduler_info()["workers"]) == 2  # the user's workers are still there
+    assert not record.get("pending") and record["frames"] > 0 and not record["error"], record
+    assert not (out / LOCK).exists()
+    todo, done = SweepDir(out).plan(plan_runs(json.loads(scene.read_text()), str(scene), [vary], 60.0,
+                                              "Phong", (64, 64)))
+    assert [s.index for s in done] == [0] and [s.index for s in todo] == [1, 2, 3]

@@ -295,7 +295,7 @@ def test_write_frames_kernel_writes_and_renames(scene, tmp_path):
     objtext.write_frames(positions, normals, np.array([2, 0]), np.array([True, False]),
                          sim.model.triangles.astype(np.int32), table, u8(b"# clothsim cloth mesh\n"),
                          u8(seq.mesh.vt), u8(seq.mesh.faces), u8(b"v "), u8(b"vn "),
-                         np.empty(256 * 100, np.uint8), status)
+                         np.empty(256 * 100, np.uint8), status, False)
     assert status.tolist() == [objtext.FRAME_OK, objtext.FRAME_OK]
     assert sorted(os.listdir(tmp_path)) == ["a.obj", "b.obj"]
     uv, tri = sim.model.uvs, sim.model.triangles
@@ -304,6 +304,35 @@ def test_write_frames_kernel_writes_and_renames(scene, tmp_path):
     # contract its arithmetic differently there, within the last bit or two
     np.testing.assert_allclose(normals[2], frames[2][1], rtol=1e-14, atol=1e-15)
     assert (tmp_path / "a.obj").read_bytes() == obj_bytes(*frames[0], uv, tri)
+
+
+@pytest.mark.skipif(not objtext.NATIVE_WRITE, reason="the C library's write is called on 64-bit POSIX only")
+def test_write_frames_kernel_exclusive_links_and_never_replaces(scene, tmp_path):
+    """exclusive: a free name gets the file (and the temporary name is gone); a
+    taken one keeps its file and the whole temporary file is left, FRAME_NOT_PLACED"""
+    sim, frames = _frames(scene, 2)
+    tmp_path = tmp_path / "out"
+    tmp_path.mkdir()
+    seq = ObjSequence(tmp_path, sim.model.uvs, sim.model.triangles, background=False)
+    positions = np.stack([p for p, _ in frames])
+    normals = np.stack([n for _, n in frames])
+    (tmp_path / "taken.obj").write_text("theirs")
+    paths = [tmp_path / "t0", tmp_path / "free.obj", tmp_path / "t1", tmp_path / "taken.obj"]
+    names = [os.fsencode(p) + b"\0" for p in paths]
+    width = max(map(len, names))
+    table = np.frombuffer(b"".join(n.ljust(width, b"\0") for n in names), np.uint8).reshape(4, width)
+    status = np.full(2, -1, np.int64)
+    u8 = lambda b: np.frombuffer(b, np.uint8)  # noqa: E731
+    objtext.write_frames(positions, normals, np.array([0, 1]), np.array([False, False]),
+                         sim.model.triangles.astype(np.int32), table, u8(b"# clothsim cloth mesh\n"),
+                         u8(seq.mesh.vt), u8(seq.mesh.faces), u8(b"v "), u8(b"vn "),
+                         np.empty(256 * 100, np.uint8), status, True)
+    assert status.tolist() == [objtext.FRAME_OK, objtext.FRAME_NOT_PLACED]
+    assert sorted(os.listdir(tmp_path)) == ["free.obj", "t1", "taken.obj"]
+    uv, tri = sim.model.uvs, sim.model.triangles
+    assert (tmp_path / "free.obj").read_bytes() == obj_bytes(*frames[0], uv, tri)
+    assert (tmp_path / "taken.obj").read_text() == "theirs"
+    assert (tmp_path / "t1").read_bytes() == obj_bytes(*frames[1], uv, tri)
 
 
 def test_obj_sequence_formats_an_undecided_frame_in_python(scene, tmp_path):

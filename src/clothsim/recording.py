@@ -95,7 +95,10 @@ class FrameRecorder:
     ``cloth_start[k]:cloth_start[k+1]``) and ``cloth_triangle_start`` (K+1,,
     likewise its triangles); ``usd`` a time-sampled USD stage (one mesh per
     cloth); ``html`` a self-contained web player. The OBJ sequence has one
-    ``o`` object per cloth when there are several. Every path is checked
+    ``o`` object per cloth when there are several; each frame's file is
+    written whole as the run goes and, without ``overwrite``, never placed
+    over a file that appeared at its name meanwhile (OutputError, from the
+    frame after or from :meth:`finish`). Every whole-run path is checked
     before the run and written whole, or not at all, after it.
     """
 
@@ -124,7 +127,7 @@ class FrameRecorder:
         self._sequence = None
         if self.sequence_dir:
             self._sequence = ObjSequence(self.sequence_dir, sim.model.uvs, sim.model.triangles,
-                                         objects=model_objects(sim.model))
+                                         objects=model_objects(sim.model), overwrite=overwrite)
             self._sequence.write(sim.frame, sim.positions)  # normals: computed by its thread
 
     def __call__(self, sim: Simulation) -> None:

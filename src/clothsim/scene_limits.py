@@ -22,7 +22,9 @@ DENSITY_MIN, DENSITY_MAX = 1e-6, 1e6
 FPS_MIN, FPS_MAX = 1e-3, 1e4
 """the range of frames_per_sec"""
 STEPS_MAX = 100_000
-"""most substeps per frame"""
+"""most substeps per frame, and of one ``Simulation.step(substeps)``"""
+RUN_FRAMES_MAX = 10_000_000
+"""most frames of one run: ``Simulation.run``, ``clothsim.record``, ``--seconds``"""
 POINTS_MAX = 4_000_000
 """most points of a grid cloth (num_width_points x num_height_points)"""
 SEED_MAX = 2**63 - 1

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import copy
 import html
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -144,11 +143,11 @@ def record(sim, seconds: float, every: int = 1) -> Trajectory:
     """
     if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
         raise ValueError(f"every: expected a whole number >= 1, got {every!r}")
-    if not math.isfinite(seconds) or seconds < 0:
-        raise ValueError(f"seconds: expected a finite number >= 0, got {seconds!r}")
+    from .simulation import run_frames
+
     every = int(every)
     fps = float(sim.params.frames_per_sec)
-    frames = max(0, int(round(seconds * fps)))  # as Simulation.run
+    frames = run_frames(seconds, fps)  # as Simulation.run counts them, and refuses what it refuses
     kept = frames // every
     positions = np.empty((kept + 1,) + sim.positions.shape)
     times = np.empty(kept + 1)

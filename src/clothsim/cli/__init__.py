@@ -8,7 +8,8 @@ library, so ``clothsim --help`` and ``--version`` answer at once; each
 ``run`` imports what its work needs.
 
 Every :class:`~clothsim.errors.ClothsimError` becomes one line on stderr
-and exit code 2; every :class:`~clothsim.errors.SceneWarning` one line
+and exit code 2 (argparse's own usage errors too, see :class:`Parser`);
+every :class:`~clothsim.errors.SceneWarning` one line
 ``clothsim: warning: ...`` on stderr, each time it is raised.
 """
 
@@ -22,15 +23,39 @@ import warnings
 from collections.abc import Sequence
 
 from .. import __version__
-from ..errors import ClothsimError, SceneWarning
+from ..errors import ClothsimError, SceneWarning, UsageError
 from . import render, scenes, simulate, sweep, view
 
 SUBCOMMANDS = (simulate, render, sweep, view, scenes)
 """in the order ``--help`` lists them"""
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's own usage errors (an unknown option, a missing argument, a bad
+    choice) as a :class:`~clothsim.errors.UsageError`: one line naming the
+    subcommand and where its help is, instead of the usage block. Subparsers
+    are made of the same class (argparse's default); ``--help`` is untouched."""
+
+    def error(self, message: str):
+        raise UsageError(_usage_message(self.prog, message))
+
+    def parse_args(self, args=None, namespace=None):
+        """as argparse's, but arguments left over name the subcommand they came after"""
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:
+            command = getattr(parsed, "command", None)
+            prog = f"{self.prog} {command}" if command else self.prog
+            raise UsageError(_usage_message(prog, f"unrecognized arguments: {' '.join(extras)}"))
+        return parsed
+
+
+def _usage_message(prog: str, message: str) -> str:
+    command = prog.partition(" ")[2]
+    return f"{command + ': ' if command else ''}{message} (see '{prog} --help')"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="clothsim", description="Mass-spring cloth simulator with GLSL rendering.")
     parser.add_argument("--version", action="version", version=f"clothsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -53,7 +78,7 @@ EXIT_CODES = {KeyboardInterrupt: 130, Terminated: 143}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    try:  # a value parser raises UsageError: one line, like every other error
+    try:  # a value parser and Parser.error raise UsageError: one line, like every other error
         args = build_parser().parse_args(argv)
     except ClothsimError as exc:
         print(error_line(exc), file=sys.stderr)

@@ -13,11 +13,12 @@ import math
 from collections.abc import Callable
 
 from ..errors import UsageError
+from ..scene_limits import RUN_FRAMES_MAX
 
 SECONDS_MAX = 1e6
 """longest simulated time of a run [s]"""
-FRAMES_MAX = 10_000_000
-"""most frames of a run (--seconds times the scene's frames_per_sec)"""
+FRAMES_MAX = RUN_FRAMES_MAX
+"""most frames of a run (--seconds times the scene's frames_per_sec), as the library's"""
 VIDEO_FPS_MAX = 1000.0
 """highest --fps of a video"""
 THREADS_MAX = 1024

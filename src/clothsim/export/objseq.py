@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import place
 from .obj import HEADER, MeshText, Objects, _frame_parts, _objtext, compute_normals
 
 
@@ -30,15 +31,21 @@ class ObjSequence:
     one ``o`` per cloth (:func:`model_objects`), as :func:`obj_bytes`.
 
     Each file is written under a hidden temporary name (``.frame_NNNN.obj.tmp``)
-    and renamed when whole, so a ``frame_*.obj`` is never partial.
+    and moved to its name when whole, so a ``frame_*.obj`` is never partial.
+    Without ``overwrite`` it is placed exclusively (a hard link, as
+    :func:`clothsim.outputs.place`): a file that appeared at a frame's name
+    while the run went on is kept, and :meth:`write` or :meth:`close` raises
+    :class:`~clothsim.outputs.OutputError`; with ``overwrite`` it is renamed
+    over whatever is there.
 
     ``background`` (default: on 64-bit POSIX): :meth:`write` copies the frame
     into a ring of at most ``ring_bytes`` (at least two frames) and returns; a
     thread takes the queued frames (when ``BATCH`` of them are waiting, the ring
     is full, :meth:`close` is called, or every ``WAKE_S`` seconds) and
     computes the normals where none were given, formats and writes them, file
-    by file with the C library's creat/write/close/rename, in one compiled call
-    that holds no GIL (:func:`.objtext.write_frames`): it needs the GIL only
+    by file with the C library's creat/write/close/rename (link/unlink without
+    ``overwrite``), in one compiled call that holds no GIL
+    (:func:`.objtext.write_frames`): it needs the GIL only
     to pick up a batch and hand it back, and asks for it seldom (a simulation
     stepped by kernels that keep the GIL lets it go only between frames).
     :meth:`write` waits when the ring is full. Without ``background`` each file is written before
@@ -55,9 +62,11 @@ class ObjSequence:
 
     def __init__(self, folder: str | Path, uvs: np.ndarray, triangles: np.ndarray,
                  background: bool | None = None, ring_bytes: int = 64 << 20,
-                 name: str = "frame_{:04d}.obj", objects: Objects | None = None) -> None:
+                 name: str = "frame_{:04d}.obj", objects: Objects | None = None,
+                 overwrite: bool = False) -> None:
         self.folder = Path(folder)
         self.name = name
+        self.overwrite = bool(overwrite)
         self.mesh = MeshText(uvs, triangles, objects)
         ot = _objtext()
         self.background = ot.NATIVE_WRITE if background is None else bool(background and ot.NATIVE_WRITE)
@@ -113,7 +122,7 @@ class ObjSequence:
             tmp = self._tmp(path)
             try:
                 _write_file(tmp, _frame_parts(positions, normals, self.mesh))
-                os.replace(tmp, path)
+                place(tmp, path, self.overwrite)
             except BaseException:
                 tmp.unlink(missing_ok=True)
                 raise
@@ -141,14 +150,17 @@ class ObjSequence:
         """take back the slots of the frames the thread finished, and write again in
         Python those it could not (with the lock held)"""
         done, self._done = self._done, []
+        ot = _objtext()
         for slot, path, compute, status in done:
             tmp = self._tmp(path)
             try:
-                if status != 0:  # FRAME_WRITE_FAILED learns why, FRAME_UNDECIDED formats in Python
+                if status == ot.FRAME_NOT_PLACED:  # written whole; the link failed: place() says why
+                    place(tmp, path, self.overwrite)
+                elif status != ot.FRAME_OK:  # FRAME_WRITE_FAILED learns why, FRAME_UNDECIDED formats in Python
                     positions = self._positions[slot]
                     normals = compute_normals(positions, self._triangles) if compute else self._normals[slot]
                     _write_file(tmp, _frame_parts(positions, normals, self.mesh))
-                    os.replace(tmp, path)
+                    place(tmp, path, self.overwrite)
             except BaseException as e:
                 tmp.unlink(missing_ok=True)
                 if self._error is None:
@@ -230,7 +242,7 @@ class ObjSequence:
             try:
                 ot.write_frames(self._positions, self._normals, slots, compute, self._triangles, table,
                                 self._head, self._vt, self._faces, self._v_prefix, self._vn_prefix,
-                                self._scratch, status)
+                                self._scratch, status, not self.overwrite)
             except BaseException:  # noqa: BLE001 - each frame is written again by the main thread
                 pass
             with self._cond:

@@ -264,6 +264,8 @@ _c_creat = _libc("creat", _I32, _I8P, _I32)  # int creat(const char *, mode_t): 
 _c_write = _libc("write", _I64, _I32, _I8P, _I64)  # ssize_t write(int, const void *, size_t)
 _c_close = _libc("close", _I32, _I32)
 _c_rename = _libc("rename", _I32, _I8P, _I8P)
+_c_link = _libc("link", _I32, _I8P, _I8P)  # int link(const char *, const char *): fails where the name is taken
+_c_unlink = _libc("unlink", _I32, _I8P)
 
 
 @njit(cache=True, boundscheck=False, error_model="numpy", inline="always")
@@ -287,7 +289,7 @@ def copy_frame(positions, normals, slot, frame_positions, frame_normals):
     normals[slot] = frame_normals
 
 
-FRAME_OK, FRAME_WRITE_FAILED, FRAME_UNDECIDED = 0, 1, 2
+FRAME_OK, FRAME_WRITE_FAILED, FRAME_UNDECIDED, FRAME_NOT_PLACED = 0, 1, 2, 3
 """the status :func:`write_frames` gives each frame"""
 
 FILE_MODE = 0o666
@@ -296,14 +298,17 @@ FILE_MODE = 0o666
 
 @njit(cache=True, boundscheck=False, error_model="numpy", nogil=True)
 def write_frames(positions, normals, slots, compute, triangles, names, head, vt, faces, v_prefix, vn_prefix,
-                 scratch, status):
+                 scratch, status, exclusive):
     """For each j, write frame ``positions[slots[j]]``, ``normals[slots[j]]`` (first
     computed there from ``triangles`` where ``compute[j]``) as a whole OBJ file:
     ``head``, the v lines (%.9g), ``vt``, the vn lines (%.6g), ``faces``, to the
     temporary file ``names[2j]`` and rename it to ``names[2j+1]`` (``names``:
-    (2J, L) uint8, NUL-terminated paths). ``status[j]``: FRAME_OK,
-    FRAME_WRITE_FAILED (the caller learns why by writing it again) or
-    FRAME_UNDECIDED (the caller formats it with Python). Holds no GIL."""
+    (2J, L) uint8, NUL-terminated paths); where ``exclusive``, hard-link it there
+    instead (which fails where a file is already there) and remove the
+    temporary name. ``status[j]``: FRAME_OK, FRAME_WRITE_FAILED (the caller
+    learns why by writing it again), FRAME_UNDECIDED (the caller formats it
+    with Python) or FRAME_NOT_PLACED (the link failed: the temporary file is
+    whole and left for the caller to place, or to refuse). Holds no GIL."""
     base = np.uint64(names.ctypes.data)
     row = np.uint64(names.shape[1])
     for j in range(slots.shape[0]):
@@ -325,5 +330,11 @@ def write_frames(positions, normals, slots, compute, triangles, names, head, vt,
               and _write_all(fd, faces, 0, faces.shape[0]))
         if _c_close(fd) != 0 or not ok:
             continue
-        if _c_rename(tmp, tmp + row) == 0:
+        if not exclusive:
+            if _c_rename(tmp, tmp + row) == 0:
+                status[j] = FRAME_OK
+        elif _c_link(tmp, tmp + row) == 0:
+            _c_unlink(tmp)
             status[j] = FRAME_OK
+        else:
+            status[j] = FRAME_NOT_PLACED

@@ -27,10 +27,15 @@ class RunResult:
     error: str | None = None
 
 
-def run_one(spec: RunSpec) -> RunResult:
+def run_one(spec: RunSpec, stop: str | None = None) -> RunResult:
     """Simulate and render one run headless with its own GL context.
 
     Never raises for a bad run: the error is returned, so the sweep goes on.
+    ``stop``: the name of a Dask ``Event`` (a run on a cluster) looked at
+    every :data:`WATCH_S` while it simulates; once it is set, the run ends
+    there (its result, an error, goes to nobody): a cluster's worker cannot
+    be killed from outside as a local one is, and would otherwise go on with
+    a run of a sweep that was stopped.
     """
     from ..errors import ClothsimError, SceneWarning
     from ..export import model_obj_text
@@ -45,7 +50,7 @@ def run_one(spec: RunSpec) -> RunResult:
             warnings.simplefilter("ignore", SceneWarning)
             scene = parse_scene(apply_overrides(spec.scene, spec.overrides, spec.source), spec.source)
         sim = Simulation(scene, threads=1)  # the sweep runs in parallel already
-        frames = sim.run(spec.seconds)
+        frames = sim.run(spec.seconds, _stop_check(stop) if stop else None)
         result.record = {**measure(sim), "frames": frames}
         result.obj = model_obj_text(sim.model, sim.positions, sim.normals)
         result.png = _render_png(sim, spec)
@@ -123,8 +128,36 @@ def watch_parent(parent: int) -> None:
     threading.Thread(target=watch, name="clothsim-watch-parent", daemon=True).start()
 
 
+class SweepStopped(Exception):
+    """raised inside a run on a cluster once the sweep that sent it has stopped"""
+
+
+def _stop_check(name: str) -> Callable[[Any], None]:
+    """an ``on_frame`` that raises SweepStopped once the Dask Event ``name`` is set
+    (asked at most every WATCH_S: one round trip to the scheduler)"""
+    from distributed import Event
+
+    event = Event(name)
+    due = [time.monotonic() + WATCH_S]
+
+    def check(sim) -> None:
+        now = time.monotonic()
+        if now >= due[0]:
+            due[0] = now + WATCH_S
+            if event.is_set():
+                raise SweepStopped("the sweep that sent this run was stopped")
+
+    return check
+
+
 def _dask(specs: list[RunSpec], scheduler: str) -> Iterator[RunResult]:
-    from distributed import Client, as_completed as dask_completed
+    """The runs on the Dask cluster at ``scheduler``. Stopped (Ctrl-C, SIGTERM, an
+    error): the queued runs are cancelled and the running ones told to stop
+    (an Event each of them watches), so nothing of the sweep goes on on the
+    cluster; the cluster and its workers, the user's, are left running."""
+    from uuid import uuid4
+
+    from distributed import Client, Event, as_completed as dask_completed
 
     from ..errors import ClothsimError
 
@@ -132,12 +165,29 @@ def _dask(specs: list[RunSpec], scheduler: str) -> Iterator[RunResult]:
         client = Client(scheduler, timeout="10s")
     except (OSError, TimeoutError) as exc:
         raise ClothsimError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({exc})") from None
+    futures = []
+    stop = None
     try:
-        futures = client.map(run_one, specs, pure=False)
+        stop = Event(f"clothsim-sweep-stop-{uuid4().hex}", client=client)
+        futures = client.map(run_one, specs, pure=False, stop=stop.name)
         for fut in dask_completed(futures):
             yield fut.result()
+        stop.clear()  # every run is done: the scheduler forgets the event (a stopped sweep leaves it set)
+    except BaseException:
+        _stop_on_cluster(client, stop, futures)
+        raise
     finally:
         client.close()
+
+
+def _stop_on_cluster(client, stop, futures) -> None:
+    """tell the running runs to stop and cancel the rest; quietly, as the sweep
+    is on its way out (a scheduler already gone is no error here)"""
+    for action in (lambda: stop is not None and stop.set(), lambda: client.cancel(futures, force=True)):
+        try:
+            action()
+        except BaseException:  # noqa: BLE001 - a second Ctrl-C, a lost scheduler: the sweep stops anyway
+            pass
 
 
 def run_sweep(specs: Iterable[RunSpec], workers: int = 1, scheduler: str | None = None,
@@ -146,8 +196,11 @@ def run_sweep(specs: Iterable[RunSpec], workers: int = 1, scheduler: str | None 
     specs = list(specs)
     source = _dask(specs, scheduler) if scheduler else _local(specs, workers)
     results = []
-    for result in source:
-        if on_result is not None:
-            on_result(result)
-        results.append(result)
+    try:
+        for result in source:
+            if on_result is not None:
+                on_result(result)
+            results.append(result)
+    finally:
+        source.close()  # stopped in on_result: the workers stop now, not when the generator is collected
     return sorted(results, key=lambda r: r.spec.index)
