@@ -76,7 +76,7 @@ def start(variant: str) -> subprocess.Popen | None:
 
 def calls(variant: str) -> list:
     """(kernel, arguments) in the reverse of the order the substep types them."""
-    from .colliders import collide, has_settle, settle, settle_needs_q
+    from .colliders import collide, has_settle, settle
     from .control import make_control
     from .handles import place_handles
     from .wind import blow
@@ -118,7 +118,6 @@ def calls(variant: str) -> list:
            (_provot_both, (P, springs, knobs.enabled, scratch.masks[0], zero, i64)),
            (settle, (P, scratch.Q, points.free, control, zero, i64, zero)),
            (has_settle, (control,)),
-           (settle_needs_q, (control,)),
            (collide, (P, L, points.free, control, zero, i64, zero))]
     push, count, touched = lists.push, lists.count, lists.touched
     out += [(apply_pushes, (P, push, count, points.free, 1.0, zero, i64)),

@@ -8,7 +8,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .colliders import collide, has_settle, settle, settle_needs_q
+from .colliders import collide, has_settle, settle
 from .handles import place_handles
 from .wind import blow
 from .provot import provot
@@ -104,7 +104,6 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     # each value, its pass ran faster
     W, Q = scratch.W, scratch.Q
     settling = has_settle(control)
-    copying = settle_needs_q(control)
     for s in range(substeps):
         # a part's last springs reach into the next part's first points: those
         # are moved only once every part has its forces
@@ -123,7 +122,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
         for t in prange(parts):
             lo, hi = _chunk_range(n, parts, t)
             collide(P, L, free, control, lo, hi, s)
-            if copying:
+            if settling:
                 _copy_range(P, Q, lo, hi)
             provot(P, springs, enabled, masks[t], lo, hi, False)
         for t in range(1, parts):

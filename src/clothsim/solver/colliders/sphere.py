@@ -85,7 +85,7 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
                 y[p] = ny if hit else y[p]
                 z[p] = nz if hit else z[p]
             if flagged:
-                _through(x, y, z, lx, ly, lz, free, row, False)
+                _through(x, y, z, lx, ly, lz, free, row, False, keep)
             continue
         a = carry_of(row, 5)
         for p in range(x.shape[0]):
@@ -105,7 +105,7 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
             y[p] = ny if hit else y[p]
             z[p] = nz if hit else z[p]
         if flagged:
-            _through(x, y, z, lx, ly, lz, free, row, True)
+            _through(x, y, z, lx, ly, lz, free, row, True, keep)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -130,16 +130,16 @@ def _flag(dx, dy, dz, d2, ex, ey, ez, r2, in2):
 
 
 @njit(**KERNEL_OPTIONS)
-def _through(x, y, z, lx, ly, lz, free, row, moving):
+def _through(x, y, z, lx, ly, lz, free, row, moving, keep):
     """The flagged points of :func:`collide_spheres` (found again by the same
     test, on positions that the loop left as they were) go to where their
     segment first meets the sphere, SPHERE_OFFSET outside, or, where the last
     position was itself inside, to the surface nearest it; then the friction
-    rule, toward the (carried) last position."""
+    rule, toward the (carried) last position: ``keep`` is 1 - friction (1 for
+    none)."""
     cx, cy, cz, r = row[0], row[1], row[2], row[3]
     r2 = r * r
     in2 = max(r - SPHERE_SETTLE, 0.0) ** 2
-    keep = 1.0 - row[4]
     a = carry_of(row, 5)
     for p in range(x.shape[0]):
         if free[p] == 0.0:
@@ -172,27 +172,36 @@ def _through(x, y, z, lx, ly, lz, free, row, moving):
 
 
 @njit(**KERNEL_OPTIONS)
-def settle_spheres(P, free, spheres, lo, hi, s):
-    """Points ``lo:hi`` that a later pass left deeper than SPHERE_SETTLE inside a
-    sphere (at its pose at the end of substep ``s``) go out along the ray from
-    the centre to the surface, with no friction; shallower ones stay to the bit."""
+def settle_spheres(P, Q, free, spheres, lo, hi, s):
+    """Points ``lo:hi`` that a later pass moved from Q (after the colliders)
+    deeper than SPHERE_SETTLE into a sphere (at its pose at the end of substep
+    ``s``) go out along the ray from the centre to the surface, with no
+    friction; shallower ones stay to the bit. One that the pass moved past the
+    centre, or through the sphere, goes back along its segment from Q to
+    where it entered, as in :func:`collide_spheres`."""
     if spheres is None:
         return
     rows = spheres[min(s, spheres.shape[0] - 1)]
     x, y, z = P[0, lo:hi], P[1, lo:hi], P[2, lo:hi]
+    qx, qy, qz = Q[0, lo:], Q[1, lo:], Q[2, lo:]
     free = free[lo:]
     for k in range(rows.shape[0]):
         row = rows[k]
         cx, cy, cz, r = row[0], row[1], row[2], row[3]
-        inner = max(r - SPHERE_SETTLE, 0.0)
-        inner2 = inner * inner
+        r2 = r * r
+        in2 = max(r - SPHERE_SETTLE, 0.0) ** 2
+        flagged = 0
         for p in range(x.shape[0]):
             dx = x[p] - cx
             dy = y[p] - cy
             dz = z[p] - cz
             d2 = dx * dx + dy * dy + dz * dz
-            deep = d2 < inner2 and d2 > 0.0 and free[p] != 0.0
+            through = _flag(dx, dy, dz, d2, qx[p] - cx, qy[p] - cy, qz[p] - cz, r2, in2) and free[p] != 0.0
+            deep = d2 < in2 and d2 > 0.0 and free[p] != 0.0 and not through
+            flagged += through
             f = r / np.sqrt(d2 if deep else 1.0)
             x[p] = cx + dx * f if deep else x[p]
             y[p] = cy + dy * f if deep else y[p]
             z[p] = cz + dz * f if deep else z[p]
+        if flagged:
+            _through(x, y, z, qx, qy, qz, free, row, False, 1.0)
