@@ -13,10 +13,9 @@ compiles only the colliders it has.
 The kinds that test a point's whole segment (boxes, meshes) also have a
 settle kernel that the substep runs after the Provot pass, from the
 positions the colliders left (Q) to where the pass put them: no constraint
-pushes a point through a box or a mesh. Spheres have one too: a point
-that the pass left deeper than :data:`~.sphere.SPHERE_SETTLE` inside goes
-out to the surface, or back to where its segment from Q entered where the
-pass took it past the centre or through.
+pushes a point through a box or a mesh. Spheres have one too, which reads
+the last positions L instead of Q: a point that the pass left deeper than
+:data:`~.sphere.SPHERE_SETTLE` inside goes out to the surface.
 
 Adding a kind: its module, its field in :class:`~clothsim.solver.groups.Control`
 and in :data:`KINDS`, its line in :func:`collide` (and :func:`settle`) and in
@@ -61,11 +60,11 @@ def collide(P, L, free, control, lo, hi, s):
 
 
 @njit(cache=True)
-def settle(P, Q, free, control, lo, hi, s):
+def settle(P, Q, L, free, control, lo, hi, s):
     """Points ``lo:hi`` that the Provot pass moved from Q into a box or across a
     mesh are put back where they crossed, and those it left deep in a sphere
-    go out to its surface (see the module)."""
-    settle_spheres(P, Q, free, control.spheres, lo, hi, s)
+    go out to its surface (see the module); L: the last positions."""
+    settle_spheres(P, L, free, control.spheres, lo, hi, s)
     settle_boxes(P, Q, free, control.boxes, lo, hi, s)
     settle_meshes(P, Q, free, control, lo, hi, s)
 
@@ -76,5 +75,12 @@ def has_settle(control):
     return control.spheres is not None or control.boxes is not None or control.meshes is not None
 
 
+@njit(cache=True)
+def settle_needs_q(control):
+    """Whether :func:`settle` reads Q, the positions after the colliders: the
+    sphere's settle does not, so a scene with spheres alone skips the copy"""
+    return control.boxes is not None or control.meshes is not None
+
+
 __all__ = ["KINDS", "PLANE_OFFSET", "SPHERE_SETTLE", "collide", "collide_boxes", "collide_planes", "collide_spheres",
-           "has_settle", "pack_colliders", "settle"]
+           "has_settle", "pack_colliders", "settle", "settle_needs_q"]

@@ -36,8 +36,21 @@ SPHERE_OFFSET = 1e-4
 
 SPHERE_SETTLE = 1e-3
 """depth [m] beyond which a point that a later pass (Provot's) pulled into a
-sphere is put back on its surface: the standard sphere scenes at their own
-substep count never reach a quarter of it, so they are left to the bit"""
+sphere is put back on its surface: the standard still-sphere scenes at their
+own substep count never reach a quarter of it, so they are left to the bit"""
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _far2(r):
+    """(squared radius of the sphere SPHERE_SETTLE inside the surface, squared
+    length of a substep's move beyond which its segment may need the entry
+    rule). A segment from a last position no deeper than SPHERE_SETTLE that
+    ends past the centre is longer than that inner radius; one that starts and
+    ends outside and dips deeper than SPHERE_SETTLE is longer than the chord
+    at that depth: a move shorter than both needs no more than the radial rule."""
+    inner = max(r - SPHERE_SETTLE, 0.0)
+    in2 = inner * inner
+    return in2, min(in2, 4.0 * (r * r - in2))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -47,12 +60,13 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
     where "last" is carried along by the sphere's motion over substep ``s``
     (unmoved while no sphere moves, as in CS184).
 
-    The radial rule holds while the point's segment from its last position
-    entered the sphere on its own side. A point whose segment went through the
-    whole sphere (both ends outside), or that ends past the centre as seen from
-    its last position, is flagged in the same loop and left for
-    :func:`_through`, which puts it at the segment's entry instead: the
-    flags are rare, so the loop stays a branch-free select that vectorises.
+    That radial rule holds while the point's segment from its last position
+    entered the sphere on its own side. A point that moved farther over the
+    substep than :func:`_far2` allows (at the standard scenes' substep counts,
+    none does) is left in the loop, which stays a branch-free select that
+    vectorises, and :func:`_far` tests its segment: one that went through the
+    whole sphere, or that ends past the centre as seen from its last position,
+    goes to where the segment entered.
     ``spheres`` None: nothing (the branch is pruned when numba compiles it)."""
     if spheres is None:
         return
@@ -65,18 +79,21 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
         row = rows[k]
         cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
         r2 = r * r
-        in2 = max(r - SPHERE_SETTLE, 0.0) ** 2
+        far2 = _far2(r)[1]
         keep = 1.0 - fr
-        flagged = 0
+        fast = 0
         if not moving:  # the course code's loop, to the bit: no carry in its sums
             for p in range(x.shape[0]):
                 dx = x[p] - cx
                 dy = y[p] - cy
                 dz = z[p] - cz
                 d2 = dx * dx + dy * dy + dz * dz
-                through = _flag(dx, dy, dz, d2, lx[p] - cx, ly[p] - cy, lz[p] - cz, r2, in2) and free[p] != 0.0
-                hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0 and not through
-                flagged += through
+                ux = x[p] - lx[p]
+                uy = y[p] - ly[p]
+                uz = z[p] - lz[p]
+                far = ux * ux + uy * uy + uz * uz > far2
+                fast += far
+                hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0 and not far
                 f = r / np.sqrt(d2 if hit else 1.0)
                 nx = lx[p] + keep * (cx + dx * f - lx[p])
                 ny = ly[p] + keep * (cy + dy * f - ly[p])
@@ -84,8 +101,8 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
                 x[p] = nx if hit else x[p]
                 y[p] = ny if hit else y[p]
                 z[p] = nz if hit else z[p]
-            if flagged:
-                _through(x, y, z, lx, ly, lz, free, row, False, keep)
+            if fast:
+                _far(x, y, z, lx, ly, lz, free, row, False)
             continue
         a = carry_of(row, 5)
         for p in range(x.shape[0]):
@@ -94,9 +111,12 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
             dz = z[p] - cz
             d2 = dx * dx + dy * dy + dz * dz
             mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
-            through = _flag(dx, dy, dz, d2, mx - cx, my - cy, mz - cz, r2, in2) and free[p] != 0.0
-            hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0 and not through
-            flagged += through
+            ux = x[p] - mx
+            uy = y[p] - my
+            uz = z[p] - mz
+            far = ux * ux + uy * uy + uz * uz > far2
+            fast += far
+            hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0 and not far
             f = r / np.sqrt(d2 if hit else 1.0)
             nx = mx + keep * (cx + dx * f - mx)
             ny = my + keep * (cy + dy * f - my)
@@ -104,23 +124,22 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
             x[p] = nx if hit else x[p]
             y[p] = ny if hit else y[p]
             z[p] = nz if hit else z[p]
-        if flagged:
-            _through(x, y, z, lx, ly, lz, free, row, True, keep)
+        if fast:
+            _far(x, y, z, lx, ly, lz, free, row, True)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
-def _flag(dx, dy, dz, d2, ex, ey, ez, r2, in2):
+def _through(dx, dy, dz, d2, ex, ey, ez, r2, in2):
     """Whether the segment from last (centre + e) to now (centre + d) needs the
     entry rule: it ends inside past the centre (d.e < 0), or both ends are
     outside and the segment passes deeper than SPHERE_SETTLE (within
     sqrt(in2) of the centre: a point that slides past the surface through a
-    sliver of it is left alone). No division, no branch: it runs in the
-    vectorised loop for every point."""
+    sliver of it is left alone)."""
     de = dx * ex + dy * ey + dz * ez
     e2 = ex * ex + ey * ey + ez * ez
     # the segment's direction u = d - e; its nearest point to the centre lies
-    # strictly between the ends when 0 < -e.u < u.u, and is within r when
-    # |e|^2 u.u - (e.u)^2 < in2 u.u
+    # strictly between the ends when 0 < -e.u < u.u, and is within sqrt(in2)
+    # when |e|^2 u.u - (e.u)^2 < in2 u.u
     eu = de - e2
     uu = d2 - 2.0 * de + e2
     past = d2 < r2 and de < 0.0
@@ -129,17 +148,114 @@ def _flag(dx, dy, dz, d2, ex, ey, ez, r2, in2):
     return past or across
 
 
+@njit(**KERNEL_OPTIONS, inline="always")
+def _entry(ex, ey, ez, dx, dy, dz, r2):
+    """Where the segment from centre + e to centre + d first meets the sphere,
+    from the centre; from a start inside, the surface point nearest it is
+    taken (a direction: the caller scales it to the surface)"""
+    e2 = ex * ex + ey * ey + ez * ez
+    if not e2 >= r2:
+        return ex, ey, ez
+    # first root of |e + t u|^2 = r^2, u = d - e
+    ux, uy, uz = dx - ex, dy - ey, dz - ez
+    uu = ux * ux + uy * uy + uz * uz
+    eu = ex * ux + ey * uy + ez * uz
+    t = (-eu - np.sqrt(max(eu * eu - uu * (e2 - r2), 0.0))) / max(uu, 1e-300)
+    return ex + t * ux, ey + t * uy, ez + t * uz
+
+
 @njit(**KERNEL_OPTIONS)
-def _through(x, y, z, lx, ly, lz, free, row, moving, keep):
-    """The flagged points of :func:`collide_spheres` (found again by the same
-    test, on positions that the loop left as they were) go to where their
-    segment first meets the sphere, SPHERE_OFFSET outside, or, where the last
-    position was itself inside, to the surface nearest it; then the friction
-    rule, toward the (carried) last position: ``keep`` is 1 - friction (1 for
-    none)."""
+def _far(x, y, z, lx, ly, lz, free, row, moving):
+    """The points of :func:`collide_spheres` that moved too far for its loop
+    (found again by its test, on positions that the loop left as they were):
+    one whose segment from its (carried) last position went through the sphere
+    or ends past the centre goes to where that segment first meets the sphere,
+    SPHERE_OFFSET outside (or, where the last position was itself inside, to
+    the surface nearest it); one that is only inside takes the radial rule;
+    then the friction rule toward the last position, as in the loop."""
     cx, cy, cz, r = row[0], row[1], row[2], row[3]
     r2 = r * r
-    in2 = max(r - SPHERE_SETTLE, 0.0) ** 2
+    in2, far2 = _far2(r)
+    keep = 1.0 - row[4]
+    a = carry_of(row, 5)
+    for p in range(x.shape[0]):
+        mx, my, mz = lx[p], ly[p], lz[p]
+        if moving:
+            mx, my, mz = carry_point(a, mx, my, mz)
+        dx, dy, dz = x[p] - cx, y[p] - cy, z[p] - cz
+        ux, uy, uz = x[p] - mx, y[p] - my, z[p] - mz
+        if free[p] == 0.0 or not ux * ux + uy * uy + uz * uz > far2:
+            continue
+        ex, ey, ez = mx - cx, my - cy, mz - cz
+        d2 = dx * dx + dy * dy + dz * dz
+        if _through(dx, dy, dz, d2, ex, ey, ez, r2, in2):
+            sx, sy, sz = _entry(ex, ey, ez, dx, dy, dz, r2)
+            reach = r + SPHERE_OFFSET
+        elif d2 < r2 and d2 > 0.0:
+            sx, sy, sz = dx, dy, dz
+            reach = r
+        else:
+            continue
+        n = np.sqrt(sx * sx + sy * sy + sz * sz)
+        if not n > 0.0:
+            continue
+        f = reach / n
+        x[p] = mx + keep * (cx + sx * f - mx)
+        y[p] = my + keep * (cy + sy * f - my)
+        z[p] = mz + keep * (cz + sz * f - mz)
+
+
+@njit(**KERNEL_OPTIONS)
+def settle_spheres(P, L, free, spheres, lo, hi, s):
+    """Points ``lo:hi`` that a later pass (Provot's) left deeper than
+    SPHERE_SETTLE inside a sphere (at its pose at the end of substep ``s``) go
+    out along the ray from the centre to its surface, with no friction. As in
+    :func:`collide_spheres`, a point that moved too far over the substep has
+    its segment from its (carried) last position ``L`` tested: one that the
+    pass took past the centre or through the sphere goes back to where that
+    segment entered. Other points stay to the bit, and the loop that looks for
+    the ones to move only reads."""
+    if spheres is None:
+        return
+    rows = spheres[min(s, spheres.shape[0] - 1)]
+    moving = spheres.shape[0] > 1
+    x, y, z = P[0, lo:hi], P[1, lo:hi], P[2, lo:hi]
+    lx, ly, lz = L[0, lo:], L[1, lo:], L[2, lo:]
+    free = free[lo:]
+    for k in range(rows.shape[0]):
+        row = rows[k]
+        cx, cy, cz, r = row[0], row[1], row[2], row[3]
+        in2, far2 = _far2(r)
+        odd = 0
+        if not moving:
+            for p in range(x.shape[0]):
+                dx = x[p] - cx
+                dy = y[p] - cy
+                dz = z[p] - cz
+                ux = x[p] - lx[p]
+                uy = y[p] - ly[p]
+                uz = z[p] - lz[p]
+                odd += dx * dx + dy * dy + dz * dz < in2 or ux * ux + uy * uy + uz * uz > far2
+        else:
+            a = carry_of(row, 5)
+            for p in range(x.shape[0]):
+                dx = x[p] - cx
+                dy = y[p] - cy
+                dz = z[p] - cz
+                mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
+                ux = x[p] - mx
+                uy = y[p] - my
+                uz = z[p] - mz
+                odd += dx * dx + dy * dy + dz * dz < in2 or ux * ux + uy * uy + uz * uz > far2
+        if odd:
+            _settle_odd(x, y, z, lx, ly, lz, free, row, moving)
+
+
+@njit(**KERNEL_OPTIONS)
+def _settle_odd(x, y, z, lx, ly, lz, free, row, moving):
+    cx, cy, cz, r = row[0], row[1], row[2], row[3]
+    r2 = r * r
+    in2, far2 = _far2(r)
     a = carry_of(row, 5)
     for p in range(x.shape[0]):
         if free[p] == 0.0:
@@ -148,60 +264,19 @@ def _through(x, y, z, lx, ly, lz, free, row, moving, keep):
         if moving:
             mx, my, mz = carry_point(a, mx, my, mz)
         dx, dy, dz = x[p] - cx, y[p] - cy, z[p] - cz
-        ex, ey, ez = mx - cx, my - cy, mz - cz
+        ux, uy, uz = x[p] - mx, y[p] - my, z[p] - mz
         d2 = dx * dx + dy * dy + dz * dz
-        if not _flag(dx, dy, dz, d2, ex, ey, ez, r2, in2):
-            continue
-        e2 = ex * ex + ey * ey + ez * ez
-        if e2 >= r2:
-            # first root of |e + t u|^2 = r^2, u = d - e
-            ux, uy, uz = dx - ex, dy - ey, dz - ez
-            uu = ux * ux + uy * uy + uz * uz
-            eu = ex * ux + ey * uy + ez * uz
-            t = (-eu - np.sqrt(max(eu * eu - uu * (e2 - r2), 0.0))) / uu
-            sx, sy, sz = ex + t * ux, ey + t * uy, ez + t * uz
+        ex, ey, ez = mx - cx, my - cy, mz - cz
+        if ux * ux + uy * uy + uz * uz > far2 and _through(dx, dy, dz, d2, ex, ey, ez, r2, in2):
+            sx, sy, sz = _entry(ex, ey, ez, dx, dy, dz, r2)
+            reach = r + SPHERE_OFFSET
+        elif d2 < in2 and d2 > 0.0:
+            sx, sy, sz = dx, dy, dz
+            reach = r
         else:
-            sx, sy, sz = ex, ey, ez
-        n = np.sqrt(sx * sx + sy * sy + sz * sz)
-        if not n > 0.0:
             continue
-        f = (r + SPHERE_OFFSET) / n
-        x[p] = mx + keep * (cx + sx * f - mx)
-        y[p] = my + keep * (cy + sy * f - my)
-        z[p] = mz + keep * (cz + sz * f - mz)
-
-
-@njit(**KERNEL_OPTIONS)
-def settle_spheres(P, Q, free, spheres, lo, hi, s):
-    """Points ``lo:hi`` that a later pass moved from Q (after the colliders)
-    deeper than SPHERE_SETTLE into a sphere (at its pose at the end of substep
-    ``s``) go out along the ray from the centre to the surface, with no
-    friction; shallower ones stay to the bit. One that the pass moved past the
-    centre, or through the sphere, goes back along its segment from Q to
-    where it entered, as in :func:`collide_spheres`."""
-    if spheres is None:
-        return
-    rows = spheres[min(s, spheres.shape[0] - 1)]
-    x, y, z = P[0, lo:hi], P[1, lo:hi], P[2, lo:hi]
-    qx, qy, qz = Q[0, lo:], Q[1, lo:], Q[2, lo:]
-    free = free[lo:]
-    for k in range(rows.shape[0]):
-        row = rows[k]
-        cx, cy, cz, r = row[0], row[1], row[2], row[3]
-        r2 = r * r
-        in2 = max(r - SPHERE_SETTLE, 0.0) ** 2
-        flagged = 0
-        for p in range(x.shape[0]):
-            dx = x[p] - cx
-            dy = y[p] - cy
-            dz = z[p] - cz
-            d2 = dx * dx + dy * dy + dz * dz
-            through = _flag(dx, dy, dz, d2, qx[p] - cx, qy[p] - cy, qz[p] - cz, r2, in2) and free[p] != 0.0
-            deep = d2 < in2 and d2 > 0.0 and free[p] != 0.0 and not through
-            flagged += through
-            f = r / np.sqrt(d2 if deep else 1.0)
-            x[p] = cx + dx * f if deep else x[p]
-            y[p] = cy + dy * f if deep else y[p]
-            z[p] = cz + dz * f if deep else z[p]
-        if flagged:
-            _through(x, y, z, qx, qy, qz, free, row, False, 1.0)
+        n = np.sqrt(sx * sx + sy * sy + sz * sz)
+        if n > 0.0:
+            x[p] = cx + sx * (reach / n)
+            y[p] = cy + sy * (reach / n)
+            z[p] = cz + sz * (reach / n)
