@@ -209,12 +209,11 @@ def _far(x, y, z, lx, ly, lz, free, row, moving):
 def settle_spheres(P, L, free, spheres, lo, hi, s):
     """Points ``lo:hi`` that a later pass (Provot's) left deeper than
     SPHERE_SETTLE inside a sphere (at its pose at the end of substep ``s``) go
-    out along the ray from the centre to its surface, with no friction. As in
-    :func:`collide_spheres`, a point that moved too far over the substep has
-    its segment from its (carried) last position ``L`` tested: one that the
-    pass took past the centre or through the sphere goes back to where that
-    segment entered. Other points stay to the bit, and the loop that looks for
-    the ones to move only reads."""
+    out to its surface, with no friction: along the ray from the centre, or,
+    where the point now lies past the centre as seen from its (carried) last
+    position ``L``, back along that segment to where it entered, as in
+    :func:`collide_spheres`. Shallower points stay to the bit, and the loop
+    that looks for deep ones only reads the positions."""
     if spheres is None:
         return
     rows = spheres[min(s, spheres.shape[0] - 1)]
@@ -224,57 +223,39 @@ def settle_spheres(P, L, free, spheres, lo, hi, s):
     free = free[lo:]
     for k in range(rows.shape[0]):
         row = rows[k]
-        cx, cy, cz, r = row[0], row[1], row[2], row[3]
-        in2, far2 = _far2(r)
-        odd = 0
-        if not moving:
-            for p in range(x.shape[0]):
-                dx = x[p] - cx
-                dy = y[p] - cy
-                dz = z[p] - cz
-                ux = x[p] - lx[p]
-                uy = y[p] - ly[p]
-                uz = z[p] - lz[p]
-                odd += dx * dx + dy * dy + dz * dz < in2 or ux * ux + uy * uy + uz * uz > far2
-        else:
-            a = carry_of(row, 5)
-            for p in range(x.shape[0]):
-                dx = x[p] - cx
-                dy = y[p] - cy
-                dz = z[p] - cz
-                mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
-                ux = x[p] - mx
-                uy = y[p] - my
-                uz = z[p] - mz
-                odd += dx * dx + dy * dy + dz * dz < in2 or ux * ux + uy * uy + uz * uz > far2
-        if odd:
-            _settle_odd(x, y, z, lx, ly, lz, free, row, moving)
+        cx, cy, cz = row[0], row[1], row[2]
+        in2 = _far2(row[3])[0]
+        deep = 0
+        for p in range(x.shape[0]):
+            dx = x[p] - cx
+            dy = y[p] - cy
+            dz = z[p] - cz
+            deep += dx * dx + dy * dy + dz * dz < in2
+        if deep:
+            _settle_deep(x, y, z, lx, ly, lz, free, row, moving)
 
 
 @njit(**KERNEL_OPTIONS)
-def _settle_odd(x, y, z, lx, ly, lz, free, row, moving):
+def _settle_deep(x, y, z, lx, ly, lz, free, row, moving):
     cx, cy, cz, r = row[0], row[1], row[2], row[3]
     r2 = r * r
-    in2, far2 = _far2(r)
+    in2 = _far2(r)[0]
     a = carry_of(row, 5)
     for p in range(x.shape[0]):
-        if free[p] == 0.0:
+        dx, dy, dz = x[p] - cx, y[p] - cy, z[p] - cz
+        d2 = dx * dx + dy * dy + dz * dz
+        if free[p] == 0.0 or not (d2 < in2 and d2 > 0.0):
             continue
         mx, my, mz = lx[p], ly[p], lz[p]
         if moving:
             mx, my, mz = carry_point(a, mx, my, mz)
-        dx, dy, dz = x[p] - cx, y[p] - cy, z[p] - cz
-        ux, uy, uz = x[p] - mx, y[p] - my, z[p] - mz
-        d2 = dx * dx + dy * dy + dz * dz
         ex, ey, ez = mx - cx, my - cy, mz - cz
-        if ux * ux + uy * uy + uz * uz > far2 and _through(dx, dy, dz, d2, ex, ey, ez, r2, in2):
+        if dx * ex + dy * ey + dz * ez < 0.0:
             sx, sy, sz = _entry(ex, ey, ez, dx, dy, dz, r2)
             reach = r + SPHERE_OFFSET
-        elif d2 < in2 and d2 > 0.0:
+        else:
             sx, sy, sz = dx, dy, dz
             reach = r
-        else:
-            continue
         n = np.sqrt(sx * sx + sy * sy + sz * sz)
         if n > 0.0:
             x[p] = cx + sx * (reach / n)
