@@ -3,8 +3,11 @@
 A sphere is a row ``(cx, cy, cz, r, friction, carry...)`` of float64 rows
 (T, K, 5 + CARRY) (see :mod:`.motion_rows`): its centre at the end of the
 substep and how it moved over it. Positions are (3, N) coordinate planes
-(see :mod:`clothsim.solver.springs`). Each loop is a branch-free select so
-that it vectorises.
+(see :mod:`clothsim.solver.springs`). Each loop over all the points is a
+branch-free select so that it vectorises; the rare points that moved far
+enough to have gone through a sphere, and those that Provot's pass left
+deeper than SPHERE_SETTLE, are taken in scalar passes that run only when
+there are any.
 """
 
 from __future__ import annotations
