@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .colliders import collide, has_settle, settle
+from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
 from .wind import blow
 from .meshsprings import mesh_gravity, mesh_provot, mesh_spring_forces, mesh_verlet
@@ -47,6 +47,7 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     mesh_gravity(mesh_knobs, A, np.int64(0), n)  # a variable, not a literal: see docs/architecture.md
     W, Q = scratch.W, scratch.Q
     settling = has_settle(control)
+    copying = settle_needs_q(control)
     for s in range(substeps):
         for t in prange(parts):
             mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[t], part_start[t + 1])
@@ -63,14 +64,14 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
         for t in prange(parts):
             lo, hi = part_range(n, parts, t)
             collide(P, L, free, control, lo, hi, s)
-            if settling:
+            if copying:
                 _copy_range(P, Q, lo, hi)
             mesh_provot(P, mesh_springs, enabled, part_start[t], part_start[t + 1])
         mesh_provot(P, mesh_springs, enabled, part_start[parts], part_start[parts + 1])
         if settling:
             for t in prange(parts):
                 lo, hi = part_range(n, parts, t)
-                settle(P, Q, free, control, lo, hi, s)
+                settle(P, Q, L, free, control, lo, hi, s)
         if handle >= 0:
             _hold(P, handle, handle_pos)
         place_handles(P, control.moved_points, control.moved_to, s)

@@ -76,7 +76,7 @@ def start(variant: str) -> subprocess.Popen | None:
 
 def calls(variant: str) -> list:
     """(kernel, arguments) in the reverse of the order the substep types them."""
-    from .colliders import collide, has_settle, settle
+    from .colliders import collide, has_settle, settle, settle_needs_q
     from .control import make_control
     from .handles import place_handles
     from .wind import blow
@@ -116,7 +116,8 @@ def calls(variant: str) -> list:
     f32 = np.float32(1.0)
     out = [(_farthest, (P, points.center)),
            (_provot_both, (P, springs, knobs.enabled, scratch.masks[0], zero, i64)),
-           (settle, (P, scratch.Q, points.free, control, zero, i64, zero)),
+           (settle, (P, scratch.Q, L, points.free, control, zero, i64, zero)),
+           (settle_needs_q, (control,)),
            (has_settle, (control,)),
            (collide, (P, L, points.free, control, zero, i64, zero))]
     push, count, touched = lists.push, lists.count, lists.touched

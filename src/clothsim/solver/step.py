@@ -8,7 +8,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from .colliders import collide, has_settle, settle
+from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
 from .wind import blow
 from .provot import provot
@@ -78,7 +78,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     Order per substep, as in the CS184 course code: forces and Verlet,
     self-collision, the colliders, then the Provot pass; clothsim's own stages
     fit between: the handles and the wind after Verlet, and where the scene
-    has boxes or mesh colliders a settle pass after Provot (see
+    has spheres, boxes or mesh colliders a settle pass after Provot (see
     :mod:`.colliders`). ``control.handle`` (or -1) is a point held at
     ``control.handle_pos`` by the user's grab: it moves kinematically.
 
@@ -104,6 +104,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     # each value, its pass ran faster
     W, Q = scratch.W, scratch.Q
     settling = has_settle(control)
+    copying = settle_needs_q(control)
     for s in range(substeps):
         # a part's last springs reach into the next part's first points: those
         # are moved only once every part has its forces
@@ -122,7 +123,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
         for t in prange(parts):
             lo, hi = _chunk_range(n, parts, t)
             collide(P, L, free, control, lo, hi, s)
-            if settling:
+            if copying:
                 _copy_range(P, Q, lo, hi)
             provot(P, springs, enabled, masks[t], lo, hi, False)
         for t in range(1, parts):
@@ -131,7 +132,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
         if settling:
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
-                settle(P, Q, free, control, lo, hi, s)
+                settle(P, Q, L, free, control, lo, hi, s)
         if handle >= 0:
             _hold(P, handle, handle_pos)
         place_handles(P, control.moved_points, control.moved_to, s)

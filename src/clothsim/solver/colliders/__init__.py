@@ -13,7 +13,9 @@ compiles only the colliders it has.
 The kinds that test a point's whole segment (boxes, meshes) also have a
 settle kernel that the substep runs after the Provot pass, from the
 positions the colliders left (Q) to where the pass put them: no constraint
-pushes a point through a box or a mesh.
+pushes a point through a box or a mesh. Spheres have one too, which reads
+the last positions L instead of Q: a point that the pass left deeper than
+:data:`~.sphere.SPHERE_SETTLE` inside goes out to the surface.
 
 Adding a kind: its module, its field in :class:`~clothsim.solver.groups.Control`
 and in :data:`KINDS`, its line in :func:`collide` (and :func:`settle`) and in
@@ -30,7 +32,7 @@ from . import box, plane, sphere
 from .box import collide_boxes, settle_boxes
 from .mesh import collide_meshes, settle_meshes
 from .plane import PLANE_OFFSET, collide_planes
-from .sphere import collide_spheres
+from .sphere import SPHERE_SETTLE, collide_spheres, settle_spheres
 
 KINDS = ("spheres", "planes", "boxes", "meshes")
 """the collider fields of :class:`~clothsim.solver.groups.Control`, in the order
@@ -58,9 +60,11 @@ def collide(P, L, free, control, lo, hi, s):
 
 
 @njit(cache=True)
-def settle(P, Q, free, control, lo, hi, s):
+def settle(P, Q, L, free, control, lo, hi, s):
     """Points ``lo:hi`` that the Provot pass moved from Q into a box or across a
-    mesh are put back where they crossed (see the module)."""
+    mesh are put back where they crossed, and those it left deep in a sphere
+    go out to its surface (see the module); L: the last positions."""
+    settle_spheres(P, L, free, control.spheres, lo, hi, s)
     settle_boxes(P, Q, free, control.boxes, lo, hi, s)
     settle_meshes(P, Q, free, control, lo, hi, s)
 
@@ -68,8 +72,15 @@ def settle(P, Q, free, control, lo, hi, s):
 @njit(cache=True)
 def has_settle(control):
     """Whether the scene has a collider kind that :func:`settle` acts for"""
+    return control.spheres is not None or control.boxes is not None or control.meshes is not None
+
+
+@njit(cache=True)
+def settle_needs_q(control):
+    """Whether :func:`settle` reads Q, the positions after the colliders: the
+    sphere's settle does not, so a scene with spheres alone skips the copy"""
     return control.boxes is not None or control.meshes is not None
 
 
-__all__ = ["KINDS", "PLANE_OFFSET", "collide", "collide_boxes", "collide_planes", "collide_spheres",
-           "has_settle", "pack_colliders", "settle"]
+__all__ = ["KINDS", "PLANE_OFFSET", "SPHERE_SETTLE", "collide", "collide_boxes", "collide_planes", "collide_spheres",
+           "has_settle", "pack_colliders", "settle", "settle_needs_q"]
