@@ -372,6 +372,20 @@ def test_cli_broken_shader_exit_2(tmp_path, capsys):
     assert code == 2 and "Bad.frag: line 2" in err and not (tmp_path / "x.png").exists()
 
 
+def test_cli_unknown_shader_is_refused_before_the_scene_is_loaded(tmp_path, capsys, monkeypatch):
+    """an unknown --shader name is one line and exit 2 without loading (or compiling) anything"""
+    import clothsim.cli.render as render_cli
+
+    def no_load(args):
+        raise AssertionError("the scene was loaded before the shader name was checked")
+
+    monkeypatch.setattr(render_cli, "load_simulation", no_load)
+    code = main(["render", str(SCENES / "pinned2.json"), "-o", str(tmp_path / "x.png"), "--shader", "NoSuch"])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown shader 'NoSuch'" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x.png").exists()
+
+
 SKELETON_VERT = "#version 330\nuniform mat4 u_view_projection;\nin vec4 in_position;\nvoid main() { }\n"
 EMPTY_VERT = "#version 330\nvoid main() { }\n"
 EMPTY_FRAG = "#version 330\nout vec4 out_color;\nvoid main() { }\n"

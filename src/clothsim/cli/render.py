@@ -177,6 +177,17 @@ def validate(args: argparse.Namespace) -> str:
     return suffix
 
 
+def _check_shader_names(args: argparse.Namespace) -> None:
+    """An unknown ``--shader`` (or one without a vertex shader to pair with) is refused
+    here, from the folders' file names alone, before the scene is loaded and its
+    kernels compiled; compile errors come once the renderer exists."""
+    from ..render.shaders import ShaderLibrary
+
+    library = ShaderLibrary(args.shaders)
+    for name in library.names() if args.shader == "all" else [args.shader]:
+        library.sources(name)
+
+
 def run(args: argparse.Namespace) -> int:
     from ..render.media import save_image
     from ..render.scene_view import SimulationView, default_camera
@@ -187,6 +198,7 @@ def run(args: argparse.Namespace) -> int:
     if suffix in PLAYER_SUFFIXES:
         return _write_player(args)
     settings = settings_from_args(args)
+    _check_shader_names(args)
     sim = load_simulation(args)
     renderer = make_renderer(args)
     names = renderer.library.names() if args.shader == "all" else [args.shader]
