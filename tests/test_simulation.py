@@ -88,7 +88,7 @@ def test_run_refuses_seconds_that_are_not_a_bounded_count_of_frames(seconds):
 
 def test_run_frames_counts_up_to_the_bound_and_no_further():
     from clothsim.scene_limits import RUN_FRAMES_MAX
-    from clothsim.simulation import run_frames
+    from clothsim.scene_limits import run_frames
 
     assert run_frames(0.1, 90.0) == 9 and run_frames(0, 90.0) == 0 and run_frames(np.float32(1.0), 60.0) == 60
     assert run_frames(RUN_FRAMES_MAX / 100.0, 100.0) == RUN_FRAMES_MAX

@@ -9,6 +9,9 @@ name them; docs/physics.md lists them for users.
 
 from __future__ import annotations
 
+import math
+import numbers
+
 LENGTH_MAX = 1e6
 """largest coordinate or size, in either direction: points, origins, widths, radii [m]"""
 LENGTH_MIN = 1e-6
@@ -47,3 +50,17 @@ SPEED_MAX = 1e6
 """largest wind velocity component, in either direction [m/s]"""
 COEFFICIENT_MAX = 1e3
 """largest wind drag coefficient, and lift coefficient in either direction"""
+
+
+def run_frames(seconds: float, frames_per_sec: float) -> int:
+    """The whole frames of ``seconds`` of simulated time at ``frames_per_sec``:
+    ``round(seconds * frames_per_sec)``. ValueError unless ``seconds`` is a finite
+    number >= 0 whose count is at most :data:`RUN_FRAMES_MAX`."""
+    if isinstance(seconds, bool) or not isinstance(seconds, numbers.Real) \
+            or not math.isfinite(seconds) or seconds < 0:
+        raise ValueError(f"seconds: expected a finite number >= 0, got {seconds!r}")
+    count = float(seconds) * float(frames_per_sec)
+    if not count < RUN_FRAMES_MAX + 0.5:  # inf too
+        raise ValueError(f"seconds: {float(seconds):g} s at {frames_per_sec:g} frames/s is {count:,.0f} frames; "
+                         f"expected at most {RUN_FRAMES_MAX:,}")
+    return max(0, int(round(count)))

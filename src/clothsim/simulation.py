@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,7 +14,7 @@ from .mesh import compute_normals
 from .model import Cloth, Model, build_scene_model
 from .params import Material, Params
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
-from .scene_limits import RUN_FRAMES_MAX, STEPS_MAX
+from .scene_limits import STEPS_MAX, run_frames
 from .solver import ClothSolver, Control
 from .solver.control import make_control
 from .solver.cloth_solver import RUNAWAY_FACTOR
@@ -24,20 +23,6 @@ from .world import Handle, pin_handles, scene_handles
 from .world_spec import BoxSpec, MeshColliderSpec, WindSpec
 
 __all__ = ["ClothView", "Material", "Params", "Simulation", "State"]
-
-
-def run_frames(seconds: float, frames_per_sec: float) -> int:
-    """The whole frames of ``seconds`` of simulated time at ``frames_per_sec``:
-    ``round(seconds * frames_per_sec)``. ValueError unless ``seconds`` is a finite
-    number >= 0 whose count is at most :data:`~clothsim.scene_limits.RUN_FRAMES_MAX`."""
-    if isinstance(seconds, bool) or not isinstance(seconds, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(seconds) or seconds < 0:
-        raise ValueError(f"seconds: expected a finite number >= 0, got {seconds!r}")
-    count = float(seconds) * float(frames_per_sec)
-    if not count < RUN_FRAMES_MAX + 0.5:  # inf too
-        raise ValueError(f"seconds: {float(seconds):g} s at {frames_per_sec:g} frames/s is {count:,.0f} frames; "
-                         f"expected at most {RUN_FRAMES_MAX:,}")
-    return max(0, int(round(count)))
 
 
 @dataclass(frozen=True)
@@ -246,7 +231,7 @@ class Simulation:
                 f"Lower ks or raise simulation_steps (the substep is {p.dt * 1e3:.3g} ms)")
 
     def run(self, seconds: float, on_frame=None) -> int:
-        """Advance ``seconds`` of simulated time (whole frames, :func:`run_frames`:
+        """Advance ``seconds`` of simulated time (whole frames, :func:`~clothsim.scene_limits.run_frames`:
         ValueError, before any step, unless a finite number >= 0 of at most
         :data:`~clothsim.scene_limits.RUN_FRAMES_MAX` frames); return the frame count."""
         frames = run_frames(seconds, self.params.frames_per_sec)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .mesh import compute_normals
+from .scene_limits import run_frames
 
 
 @dataclass
@@ -143,8 +144,6 @@ def record(sim, seconds: float, every: int = 1) -> Trajectory:
     """
     if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
         raise ValueError(f"every: expected a whole number >= 1, got {every!r}")
-    from .simulation import run_frames
-
     every = int(every)
     fps = float(sim.params.frames_per_sec)
     frames = run_frames(seconds, fps)  # as Simulation.run counts them, and refuses what it refuses
