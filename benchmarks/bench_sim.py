@@ -25,8 +25,19 @@ triangle mesh of as many points (:func:`clothsim.procedural.delaunay_square`,
 each of ``--repeats`` rounds running every one once, and each figure is the
 best of its rounds: the ratios are taken side by side.
 
+``--against-soa [SOURCE]`` times clothsim against the C yardstick instead:
+it compiles ``soa.c`` (by default the one in the ``shared/bench`` folder
+beside this checkout) with ``cc -O3 -march=native``, then runs rounds, each
+timing ``soa 50 300 3000 list`` once and every 50x50 scene once with
+self-collision on and once with it off, one thread. A ``"bench": "soa"``
+line per scene gives the best of the rounds of each and the ratios to
+``soa list``, side by side: ten times the course code with self-collision
+on is about 3x ``soa list``, six times its springs-only path about 5x (the
+yardstick's README has how the course code compared on each kind of machine).
+
     python benchmarks/bench_sim.py [--sizes 50,100,200] [--scenes pinned2,sphere] [--repeats 3] [--no-settle]
                                    [--no-mesh] [--mesh-only] [--mesh-points 10000]
+    python benchmarks/bench_sim.py --against-soa [path/to/soa.c] [--scenes ...] [--repeats 5]
 """
 
 from __future__ import annotations
@@ -34,7 +45,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -176,6 +189,68 @@ def general_path(points: int, repeats: int, info: dict) -> None:
                       **info})
 
 
+SOA_DEFAULT = ROOT.parent / "shared" / "bench" / "soa.c"
+"""where the C yardstick's source lies beside a checkout of the project"""
+
+SOA_ARGS = ["50", "300", "3000", "list"]
+"""the yardstick's run: 50x50, 300 substeps of warm-up, 3,000 timed, the list variant"""
+
+SOA_SECONDS = 1.0
+"""simulated time of each clothsim run against it"""
+
+
+def refuse(message: str) -> None:
+    """One line on stderr and exit status 2, as the command line tools do."""
+    print(f"bench_sim.py: --against-soa: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+def build_soa(source: Path, folder: Path) -> Path:
+    """Compile the yardstick; exits 2 with one line when it cannot."""
+    if not source.is_file():
+        refuse(f"no C source at {source}")
+    cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if cc is None:
+        refuse("no C compiler (cc, gcc or clang) on PATH")
+    exe = folder / "soa"
+    done = subprocess.run([cc, "-O3", "-march=native", "-o", str(exe), str(source), "-lm"],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        first = (done.stderr.strip().splitlines() or ["no message"])[0]
+        refuse(f"{source} did not compile: {first}")
+    return exe
+
+
+def run_soa(exe: Path) -> float:
+    """substeps/s of one run of the yardstick"""
+    out = subprocess.run([str(exe), *SOA_ARGS], capture_output=True, text=True, check=True).stdout
+    return float(json.loads(out.strip().splitlines()[-1])["substeps_per_s"])
+
+
+def against_soa(source: Path, scenes: list[str], repeats: int, info: dict) -> None:
+    """The ``soa`` lines: every scene with and without self-collision against the
+    yardstick, interleaved, best of ``repeats`` rounds."""
+    with tempfile.TemporaryDirectory() as tmp:
+        exe = build_soa(source, Path(tmp))
+        best = {"soa": 0.0}
+        for r in range(repeats):
+            best["soa"] = max(best["soa"], run_soa(exe))
+            # alternate the order of the scenes so no scene always runs first in a round
+            for scene in (scenes if r % 2 == 0 else scenes[::-1]):
+                for self_collision in (True, False):
+                    rate, _ = run_once(scene, 50, SOA_SECONDS, self_collision)
+                    key = (scene, self_collision)
+                    best[key] = max(best.get(key, 0.0), rate)
+        soa = best["soa"]
+        for scene in scenes:
+            on, off = best[scene, True], best[scene, False]
+            emit({"bench": "soa", "scene": scene, "grid": "50x50", "threads": 1, "rounds": repeats,
+                  "soa_list_substeps_per_s": round(soa, 1), "substeps_per_s": round(on, 1),
+                  "substeps_per_s_no_self_collision": round(off, 1),
+                  "of_soa_list": round(on / soa, 3), "of_soa_list_no_self_collision": round(off / soa, 3),
+                  "goal_of_soa_list": 3.0, "goal_of_soa_list_no_self_collision": 5.0, **info})
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="50,100,200")
@@ -186,8 +261,19 @@ def main() -> None:
     ap.add_argument("--no-mesh", action="store_true", help="leave out the general path's comparison")
     ap.add_argument("--mesh-only", action="store_true", help="only the general path's comparison")
     ap.add_argument("--mesh-points", type=int, default=10000)
+    ap.add_argument("--against-soa", nargs="?", const=str(SOA_DEFAULT), default=None, metavar="SOURCE",
+                    help="time the 50x50 scenes against the C yardstick soa.c instead")
     args = ap.parse_args()
     info = machine()
+    if args.against_soa is not None:
+        scenes = args.scenes.split(",")
+        for scene in scenes:  # load every compiled variant before any is timed
+            sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", threads=1)
+            sim.step(substeps=0)
+            sim.params.self_collision = False
+            sim.step(substeps=0)
+        against_soa(Path(args.against_soa), scenes, args.repeats, info)
+        return
     if args.mesh_only:
         general_path(args.mesh_points, args.repeats, info)
         return

@@ -1,0 +1,227 @@
+"""What each stage of the grid path's substep costs, on its own, on one thread and on all.
+
+The whole-substep benchmarks (``bench_sim.py``) say how fast a scene runs;
+this one says where the time goes, to hold each stage against the work it
+does and the bound it meets (docs/performance.md, 'The roof'). It takes a
+cloth mid-run, copies its state, and calls each stage's kernels on that copy
+many times, putting the copy back before each batch; a line per stage gives
+the best microseconds per call over ``--rounds`` batches, the work (springs,
+points or pairs) and nanoseconds per item.
+
+- ``pinned2`` at 50x50 after 10 frames, one thread: the spring forces, their
+  gathering with the Verlet step, the Provot pass, and the Provot pass's check
+  alone (its vector loop over every spring, without the corrections);
+- ``selfCollision`` at ``--size`` (100 by default) after its 2 s fall and
+  settle, when the cloth lies piled up, on one thread and cut over numba's
+  threads: the springs with Verlet, the Provot pass, self-collision between
+  list builds, the cell sort of a build, and a whole build (the substep of
+  self-collision that makes a new list).
+
+The stages are wrapped here the way the substep calls them (``prange`` over
+the parts), compiled apart from the solver's own frame loop.
+
+    python benchmarks/bench_stages.py [--size 100] [--rounds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+from common import emit, machine
+from numba import njit, prange
+
+from clothsim import Simulation
+from clothsim.solver.provot import provot
+from clothsim.solver.selfcollide.buffers import PAIRS, VALID
+from clothsim.solver.selfcollide.collide import self_collide
+from clothsim.solver.selfcollide.hashgrid import sort_into_cells
+from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
+from clothsim.solver.springs import integrate, spring_forces, verlet_gather
+from clothsim.solver.step import _chunk_range, _to_planes
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _springs(P, L, free, knobs, springs, F, masks):
+    parts = masks.shape[0]
+    n = P.shape[1]
+    for t in prange(parts):
+        lo, hi = _chunk_range(n, parts, t)
+        integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + springs.ahead, hi))
+
+
+def _provot(P, springs, enabled, masks):
+    parts = masks.shape[0]
+    n = P.shape[1]
+    for t in prange(parts):
+        lo, hi = _chunk_range(n, parts, t)
+        provot(P, springs, enabled, masks[t], lo, hi, False)
+    for t in range(1, parts):
+        lo, _ = _chunk_range(n, parts, t)
+        provot(P, springs, enabled, masks[0], lo, lo, True)
+
+
+def _self_collide(P, points, steps, lists, pairs):
+    return self_collide(P, points, steps, lists, pairs)
+
+
+@njit
+def _cells(P, radius, span, lists):
+    """the cell sort runs on one thread in either build"""
+    return sort_into_cells(P, radius, span, lists)
+
+
+WRAPPED = {parallel: [njit(parallel=parallel)(f) for f in (_springs, _provot, _self_collide)]
+           for parallel in (False, True)}
+"""each wrapper compiled serial and parallel"""
+
+
+@njit(**KERNEL_OPTIONS)
+def provot_check(P, springs, masks):
+    """The Provot pass's first loop alone: a bit per spring over its limit, every set."""
+    start, end, count, limit = springs.start, springs.end, springs.count, springs.limit
+    x, y, z = P[0], P[1], P[2]
+    found = masks[0]
+    for s in range(6):
+        oa, ob = start[s], end[s]
+        lim_s = limit[s]
+        words = 0
+        for q in range(0, count[s], BLOCK):
+            xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
+            xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
+            lim = lim_s[q:]
+            mask = np.uint64(0)
+            for p in range(min(BLOCK, count[s] - q)):
+                over = gap2(xa, ya, za, p, xb, yb, zb, p) > lim[p] * lim[p]
+                mask |= np.uint64(1 if over else 0) << np.uint64(p)
+            found[words] = mask
+            words += 1
+
+
+class Copy:
+    """A solver's planes filled from the simulation's state, and put back on demand."""
+
+    def __init__(self, sim: Simulation):
+        self.sim, self.solver = sim, sim.solver
+        self.scratch = s = self.solver.scratch
+        _to_planes(sim.state.positions, s.P)
+        _to_planes(sim.state.last_positions, s.L)
+        self.P0, self.L0 = s.P.copy(), s.L.copy()
+
+    def reset(self) -> None:
+        self.scratch.P[:] = self.P0
+        self.scratch.L[:] = self.L0
+
+
+def best_us(call, copy: Copy, calls: int, rounds: int) -> float:
+    """Best microseconds per call over ``rounds`` batches of ``calls``, each from the copy."""
+    best = float("inf")
+    for _ in range(rounds):
+        copy.reset()
+        start = time.perf_counter()
+        for _ in range(calls):
+            call()
+        best = min(best, (time.perf_counter() - start) / calls * 1e6)
+    return best
+
+
+def line(stage: str, scene: str, grid: str, threads: int, us: float, work: int, unit: str, info: dict) -> None:
+    emit({"bench": "stage", "stage": stage, "scene": scene, "grid": grid, "threads": threads,
+          "us_per_call": round(us, 2), unit: work, f"ns_per_{unit[:-1]}": round(1000 * us / work, 3), **info})
+
+
+def spring_stages(rounds: int, info: dict) -> None:
+    sim = Simulation.from_file(ROOT / "scenes" / "pinned2.json", threads=1)
+    sim.params.self_collision = False
+    for _ in range(10):
+        sim.step()
+    copy = Copy(sim)
+    sol, s = copy.solver, copy.scratch
+    knobs, springs, free = sol.knobs(sim.params), sol.springs, sol.points.free
+    n = s.P.shape[1]
+    slots = int(springs.count.sum())
+    calls = {
+        "spring forces": lambda: spring_forces(s.P, knobs.k_over_m, springs, s.F, 0, n),
+        "gather and Verlet": lambda: verlet_gather(s.P, s.L, free, knobs, springs, s.F, 0, n, True),
+        "springs and Verlet": lambda: integrate(s.P, s.L, free, knobs, springs, s.F, 0, n, 0),
+        "Provot": lambda: provot(s.P, springs, knobs.enabled, s.masks[0], 0, n, False),
+        "Provot check": lambda: provot_check(s.P, springs, s.masks[0]),
+    }
+    for stage, call in calls.items():
+        us = best_us(call, copy, 2000, rounds)
+        points = stage == "gather and Verlet"
+        line(stage, "pinned2", "50x50", 1, us, n if points else slots, "points" if points else "springs", info)
+
+
+def piled_stages(size: int, rounds: int, info: dict) -> None:
+    grid = [f"cloth.num_width_points={size}", f"cloth.num_height_points={size}"]
+    threads = numba.get_num_threads()
+    sims = {t: Simulation.from_file(ROOT / "scenes" / "selfCollision.json", grid, threads=t)
+            for t in sorted({1, threads})}
+    lead = sims[max(sims)]
+    for _ in range(round(2.0 * lead.params.frames_per_sec) - 1):
+        lead.step()
+    for sim in sims.values():
+        sim.state.positions[:] = lead.state.positions
+        sim.state.last_positions[:] = lead.state.last_positions
+        sim.step()  # a list of this state's pairs
+    stages = {}
+    for t, sim in sims.items():
+        copy = Copy(sim)
+        sol, s = copy.solver, copy.scratch
+        knobs, springs, points, lists = sol.knobs(sim.params), sol.springs, sol.points, sol.lists
+        f_springs, f_provot, f_self = WRAPPED[t > 1]
+        steps = sim.params.simulation_steps
+        reach = 2.0 * points.thickness
+        n = s.P.shape[1]
+        slots = int(springs.count.sum())
+
+        def rebuild(s=s, points=points, steps=steps, lists=lists, f_self=f_self):
+            lists.meta[VALID] = 0
+            f_self(s.P, points, steps, lists, lists.pairs)
+
+        # a list built on the copy itself: every call below starts with no drift
+        copy.reset()
+        rebuild()
+        stages[t] = (copy, {
+            "springs and Verlet": (lambda s=s, points=points, knobs=knobs, springs=springs, f=f_springs:
+                                   f(s.P, s.L, points.free, knobs, springs, s.F, s.masks), 200, slots, "springs"),
+            "Provot": (lambda s=s, knobs=knobs, springs=springs, f=f_provot: f(s.P, springs, knobs.enabled, s.masks),
+                       200, slots, "springs"),
+            "self-collision, list just built": (lambda s=s, points=points, steps=steps, lists=lists, f=f_self:
+                                                f(s.P, points, steps, lists, lists.pairs), 50, n, "points"),
+            "cell sort of a build": (lambda s=s, points=points, lists=lists, reach=reach:
+                                     _cells(s.P, 1.2 * reach, points.span, lists), 50, n, "points"),
+            "self-collision with a build": (rebuild, 20, n, "points")})
+    # rounds interleave the thread counts, so a slow spell of the machine falls on both
+    best: dict = {}
+    for _ in range(rounds):
+        for t, (copy, calls) in stages.items():
+            for stage, (call, count, _, _) in calls.items():
+                us = best_us(call, copy, count, 1)
+                best[t, stage] = min(best.get((t, stage), float("inf")), us)
+    for t, (copy, calls) in stages.items():
+        for stage, (_, _, work, unit) in calls.items():
+            line(stage, "selfCollision", f"{size}x{size}", t, best[t, stage], work, unit, info)
+    substeps = round(2.0 * lead.params.frames_per_sec) * lead.params.simulation_steps
+    emit({"bench": "stage", "stage": "list", "scene": "selfCollision", "grid": f"{size}x{size}",
+          "pairs_piled": int(lead.solver.lists.meta[PAIRS]),
+          "rebuilds_per_100_substeps": round(100.0 * lead.neighbour_list_rebuilds / substeps, 2), **info})
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--size", type=int, default=100)
+    ap.add_argument("--rounds", type=int, default=5)
+    args = ap.parse_args()
+    info = machine()
+    spring_stages(args.rounds, info)
+    piled_stages(args.size, args.rounds, info)
+
+
+if __name__ == "__main__":
+    main()
