@@ -16,7 +16,8 @@ each on the cloth of its own case after 1.5 s (draped on the sphere, lying
 on the box) one substep's fall further, called on a fresh copy of it many
 times (the copy's own time taken off), best of the rounds: the still sphere,
 the spinning sphere (on the still one's cloth), the box, the same box
-moving, the wind (its pass over the triangles), per call of one substep.
+moving, the wind (its pass over the triangles: the grid path's stencils, and
+the general path's loop over a triangle list), per call of one substep.
 
     python benchmarks/bench_world.py [--rounds 5] [--seconds 1] [--kernels]
 """
@@ -79,7 +80,7 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
 
     from clothsim.motion import Animation, Keyframe
     from clothsim.solver.colliders import box, sphere
-    from clothsim.solver.wind import blow, pack_wind
+    from clothsim.solver.wind import blow, blow_grid, pack_wind, wind_buffer
     from clothsim.world_spec import WindSpec
 
     base = json.loads(scene_path("sphere").read_text())
@@ -104,16 +105,23 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     W, P = np.zeros((3, n)), np.zeros((3, n))
     zero, count, slot = np.int64(0), np.int64(n), np.int64(3)
 
+    cols = sim.model.cloths[0].grid[1]
+    T = wind_buffer(n, cols)
+    weight = sim.solver.springs.valid[0]
+
     def run(name):
-        if name in ("copy", "wind"):
+        if name in ("copy", "wind", "wind, triangle list"):
             P0, L = on_sphere[0], on_sphere[1]
             if name == "copy":
                 return lambda: np.copyto(P, P0)
+            if name == "wind":  # the grid path's stencils, as the substep runs it
+                return lambda: (np.copyto(P, P0), blow_grid(P, L, sim.solver.points.free, weight, knobs.inv_mass,
+                                                            knobs.dt2, wind, T, slot, cols))
             return lambda: (np.copyto(P, P0), blow(P, L, sim.solver.points, knobs.inv_mass, knobs.dt2, wind, W, slot))
         kernel, rows, (P0, L, free, _) = work[name]
         return lambda: (np.copyto(P, P0), kernel(P, L, free, rows, zero, count, slot))
 
-    names = ["copy", *work, "wind"]
+    names = ["copy", *work, "wind", "wind, triangle list"]
     best = {name: np.inf for name in names}
     for name in names:
         run(name)()  # compile

@@ -235,6 +235,36 @@ def test_wind_drag_on_a_triangle_is_half_rho_cd_area_u_squared():
     np.testing.assert_array_equal(P[1:], L[1:])
 
 
+
+@pytest.mark.parametrize("lift", [0.0, 1.2])
+def test_the_grid_wind_moves_every_point_as_the_triangle_list_does(lift):
+    """blow_grid (the grid path's stencils) against blow (the general path's loop
+    over the model's triangle list) on a crumpled, moving 16x20 grid with two
+    pinned points, in a gusty wind: the same move of every point to 1e-9 of the
+    largest, pinned points unmoved, and the moves far from zero (so a wind that
+    did nothing would fail)"""
+    from clothsim.solver.wind import blow, blow_grid, pack_wind, wind_buffer
+    from clothsim.world_spec import WindSpec
+
+    cloth = free_cloth(num_width_points=16, num_height_points=20, pinned=[[0, 0], [15, 0]])
+    sim = Simulation(parse_scene({"cloth": cloth}, "wind"), threads=1)
+    solver, model = sim.solver, sim.model
+    rows, cols = model.cloths[0].grid
+    rng = np.random.default_rng(7)
+    P = model.rest_positions.T + rng.normal(0.0, 0.02, (3, model.num_points))
+    L = P - rng.normal(0.0, 0.002, P.shape)
+    wind = pack_wind(WindSpec(velocity=(3.0, -1.0, 4.0), turbulence=0.4, lift=lift, seed=3), 0.25, 1e-3)
+    knobs = solver.knobs(sim.params)
+    grid, listed = P.copy(), P.copy()
+    blow_grid(grid, L, solver.points.free, solver.springs.valid[0], knobs.inv_mass, knobs.dt2, wind,
+              wind_buffer(model.num_points, cols), 2, cols)
+    blow(listed, L, solver.points, knobs.inv_mass, knobs.dt2, wind, np.zeros_like(P), 2)
+    move = listed - P
+    assert np.abs(move).max() > 1e-9
+    np.testing.assert_allclose(grid - P, move, rtol=0, atol=1e-9 * np.abs(move).max())
+    pinned = model.pinned
+    assert pinned.sum() == 2 and np.array_equal(grid[:, pinned], P[:, pinned])
+
 # ----------------------------------------------------------------------------- mesh colliders
 
 

@@ -19,6 +19,7 @@ from .selfcollide.nearstencil import SKIN_FACTOR
 from .shared import BLOCK
 from .springs import SET_KIND, build_stencil, force_buffer
 from .step import advance, advance_parallel, parts_for
+from .wind import wind_buffer
 
 RUNAWAY_FACTOR = 100.0
 """a point farther than this many cloth sizes from the start means the run blew up"""
@@ -79,7 +80,7 @@ class ClothSolver:
             self._build_mesh(first)
         self.scratch = Scratch(P=np.zeros((3, n)), L=np.zeros((3, n)), F=self._forces,
                                masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64),
-                               Q=np.zeros((3, n)), W=np.zeros((3, n)))
+                               Q=np.zeros((3, n)), W=self._wind)
         kernel_cache.mark_warm(BUILD_VARIANT)
 
     def _points(self, size: float) -> None:
@@ -102,6 +103,7 @@ class ClothSolver:
         self.springs = build_stencil(model.rest_positions, model.pinned, rows, cols)
         self._points(max(cloth.width, cloth.height))
         self._forces = force_buffer(self.springs, n)
+        self._wind = wind_buffer(n, cols)
         skin = skin_factor(model.rest_positions, rows, cols, cloth.thickness)
         near = near_stencil(model.rest_positions, rows, cols, cloth.thickness, skin)
         self.lists = NeighbourList.allocate(n, cols, near, self.parts, skin)
@@ -115,6 +117,7 @@ class ClothSolver:
         self.springs = build_mesh_springs(model, self.parts)
         self._points(max(model.size, 1e-9))
         self._forces = np.zeros((3, n))
+        self._wind = np.zeros((3, n))
         starts = [c.start for c in model.cloths] + [n]
         reach = 2.0 * self.points.thickness
         mesh = mesh_near(model.rest_positions, starts, reach, reach * (1.0 + SKIN_FACTOR))

@@ -135,4 +135,6 @@ class Scratch(NamedTuple):
     """positions after the colliders, float64 (3, N): the segments that the settle
     pass after Provot tests (only where the scene has boxes or mesh colliders)"""
     W: np.ndarray
-    """the wind's forces on the points, float64 (3, N) (only where there is wind)"""
+    """the wind's forces (only where there is wind): the general path's on the
+    points, float64 (3, N); the grid path's on the corners of each kind of
+    triangle, (2, 3, pad + N) (see :func:`~.wind.blow_grid`)"""

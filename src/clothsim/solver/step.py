@@ -10,7 +10,7 @@ from numba import njit, prange
 
 from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
-from .wind import blow
+from .wind import blow_grid
 from .provot import provot
 from .springs import CHUNK, gather_ahead, integrate
 from .selfcollide import self_collide
@@ -94,6 +94,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     handle, handle_pos = control.handle, control.handle_pos
     enabled, simulation_steps, self_collision = knobs.enabled, knobs.simulation_steps, knobs.self_collision
     ahead = springs.ahead
+    cols = springs.end[1]  # set 1 joins each point to the one a row down
     parts = masks.shape[0]
     _to_planes(positions, P)
     _to_planes(last_positions, L)
@@ -117,7 +118,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
         if handle >= 0:
             _hold(P, handle, handle_pos)
         place_handles(P, control.moved_points, control.moved_to, s)
-        blow(P, L, points, knobs.inv_mass, knobs.dt2, control.wind, W, s)
+        blow_grid(P, L, free, springs.valid[0], knobs.inv_mass, knobs.dt2, control.wind, W, s, cols)
         if self_collision:
             pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
         for t in prange(parts):

@@ -26,7 +26,7 @@ import functools
 import numpy as np
 from numba import njit
 
-from .shared import KERNEL_OPTIONS
+from .shared import KERNEL_OPTIONS, inv_length
 
 AIR_DENSITY = 1200.0
 """[g/m³]: 1.2 kg/m³ in the simulation's mass unit (see the module)"""
@@ -89,6 +89,39 @@ def _air(wind, t):
     return ux, uy, uz
 
 
+@njit(**KERNEL_OPTIONS, inline="always")
+def _corner_force(e1, e2, u, drag, lift, scale):
+    """The force [g m/s²] on each corner of the triangle with edges e1, e2 (tuples
+    (x, y, z)) from its first corner [m], with u [m/s] the air's velocity relative to it and
+    ``scale`` ½ρ/3; zero for a triangle of no area (or not finite). The forces
+    of :func:`blow`, written without branches, so that :func:`blow_grid`'s
+    loop vectorises (see the module's docstring for the physics)."""
+    (e1x, e1y, e1z), (e2x, e2y, e2z), (ux, uy, uz) = e1, e2, u
+    nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+    n2 = nx * nx + ny * ny + nz * nz
+    ok = n2 > 0.0
+    inv_n = inv_length(n2)
+    area = 0.5 * n2 * inv_n
+    nx, ny, nz = nx * inv_n, ny * inv_n, nz * inv_n
+    un = ux * nx + uy * ny + uz * nz
+    # the normal turned to face the air
+    sign = -1.0 if un < 0.0 else 1.0
+    nx, ny, nz, un = sign * nx, sign * ny, sign * nz, sign * un
+    d = drag * un * un
+    # lift: across u, in the plane of u and n: n less its part along u
+    u2 = ux * ux + uy * uy + uz * uz
+    # (each division's argument is guarded, not only its result: the selects
+    # then never meet an infinity, which fastmath assumes away)
+    along = un / (u2 if u2 > 0.0 else 1.0) if u2 > 0.0 else 0.0
+    px, py, pz = nx - along * ux, ny - along * uy, nz - along * uz
+    p2 = px * px + py * py + pz * pz
+    tx, ty, tz = ux - un * nx, uy - un * ny, uz - un * nz
+    k = lift * un * np.sqrt((tx * tx + ty * ty + tz * tz) / (p2 if p2 > 0.0 else 1.0)) if p2 > 0.0 else 0.0
+    a = scale * area
+    fx, fy, fz = a * (d * nx + k * px), a * (d * ny + k * py), a * (d * nz + k * pz)
+    return (fx if ok else 0.0), (fy if ok else 0.0), (fz if ok else 0.0)
+
+
 @njit(**KERNEL_OPTIONS)
 def blow(P, L, points, inv_mass, dt2, wind, W, s):
     """Move the free points of the (3, N) positions P by the wind's forces over
@@ -96,7 +129,13 @@ def blow(P, L, points, inv_mass, dt2, wind, W, s):
     substep, the forces gather in the (3, N) scratch W, and a point moves by
     ``dt² F / m``, with ``inv_mass`` (N,) the knobs' and ``dt2`` the substep
     squared [s²]. ``wind``: the control's row; None: nothing (numba prunes a
-    branch on an argument that is None, not on a field)."""
+    branch on an argument that is None, not on a field).
+
+    Any triangle list: the general path. The grid path's cloth takes
+    :func:`blow_grid`, whose branch-free form of the same forces
+    (:func:`_corner_force`) vectorises there; in this loop, whose corners are
+    indexed, it does not, and ran slower than these branches (111 against 80
+    µs a call on a 50×50 cloth with lift; docs/performance.md, 'Wind')."""
     if wind is None:
         return
     tris, free = points.triangles, points.free
@@ -153,3 +192,82 @@ def blow(P, L, points, inv_mass, dt2, wind, W, s):
         P[0, p] += k * W[0, p]
         P[1, p] += k * W[1, p]
         P[2, p] += k * W[2, p]
+
+
+def wind_buffer(num_points: int, cols: int) -> np.ndarray:
+    """Scratch for :func:`blow_grid`: each kind of triangle's corner forces, zero-padded
+    in front so that every index the gathering reads stays inside, (2, 3, pad + N)."""
+    return np.zeros((2, 3, cols + 2 + num_points))
+
+
+@njit(**KERNEL_OPTIONS)
+def blow_grid(P, L, free, weight, inv_mass, dt2, wind, T, s, cols):
+    """:func:`blow` for a grid cloth of ``cols`` columns, as stencils (see
+    :mod:`.springs`): the cell whose first corner is point p has the triangles
+    (p, p + cols, p + 1) and (p + 1, p + cols, p + cols + 1), as the model lays
+    them out, so each kind is one loop over contiguous memory that LLVM
+    vectorises, where a loop over a triangle list with indexed corners does
+    not. ``weight`` (N,) is 1 where p is a cell's first corner (not in the last
+    column; the springs' set 0 validity), and the loop stops before the last
+    row. The corner forces go to ``T`` (2, 3, pad + N) (see :func:`wind_buffer`),
+    and each point then gathers its six triangles' (three of each kind):
+    ``W[q] = T0[q] + T0[q - 1] + T0[q - cols] + T1[q - 1] + T1[q - cols] + T1[q - cols - 1]``.
+    Entries outside the cells are never written and stay zero."""
+    if wind is None:
+        return
+    dt = wind[8]
+    air = _air(wind, wind[7] + (s + 1) * dt)
+    drag, lift, scale, third = wind[4], wind[5], 0.5 * wind[6] / 3.0, 1.0 / (3.0 * dt)
+    for kind in range(2):
+        # lift 0 (the default) is a loop of its own: with a literal 0 LLVM drops
+        # the lift's square root and divisions
+        if lift == 0.0:
+            _grid_triangles(P, L, weight, T, kind, cols, air, (drag, 0.0, scale, third))
+        else:
+            _grid_triangles(P, L, weight, T, kind, cols, air, (drag, lift, scale, third))
+    _gather_corners(P, free, inv_mass, dt2, T, cols)
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _grid_triangles(P, L, weight, T, kind, cols, air, coefficients):
+    """The corner forces of every triangle of one kind into ``T[kind]`` (see
+    :func:`blow_grid`); ``air`` the air's velocity (3,) [m/s], ``coefficients``
+    (drag, lift, ½ρ/3, 1/(3 dt))."""
+    drag, lift, scale, third = coefficients
+    ax, ay, az = air
+    n = P.shape[1]
+    pad = T.shape[2] - n
+    cells = max(n - cols - 1, 0)
+    oa, ob, oc = (0, cols, 1) if kind == 0 else (1, cols, cols + 1)
+    x, y, z, lx, ly, lz = P[0], P[1], P[2], L[0], L[1], L[2]
+    xa, ya, za, xb, yb, zb = x[oa:], y[oa:], z[oa:], x[ob:], y[ob:], z[ob:]
+    xc, yc, zc = x[oc:], y[oc:], z[oc:]
+    la, ma, na = lx[oa:], ly[oa:], lz[oa:]
+    lb, mb, nb = lx[ob:], ly[ob:], lz[ob:]
+    lc, mc, nc = lx[oc:], ly[oc:], lz[oc:]
+    tx, ty, tz = T[kind, 0, pad:], T[kind, 1, pad:], T[kind, 2, pad:]
+    for p in range(cells):
+        ux = ax - ((xa[p] - la[p]) + (xb[p] - lb[p]) + (xc[p] - lc[p])) * third
+        uy = ay - ((ya[p] - ma[p]) + (yb[p] - mb[p]) + (yc[p] - mc[p])) * third
+        uz = az - ((za[p] - na[p]) + (zb[p] - nb[p]) + (zc[p] - nc[p])) * third
+        fx, fy, fz = _corner_force((xb[p] - xa[p], yb[p] - ya[p], zb[p] - za[p]),
+                                   (xc[p] - xa[p], yc[p] - ya[p], zc[p] - za[p]),
+                                   (ux, uy, uz), drag, lift, scale)
+        w = weight[p]
+        tx[p] = w * fx
+        ty[p] = w * fy
+        tz[p] = w * fz
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _gather_corners(P, free, inv_mass, dt2, T, cols):
+    """each point's six triangles' corner forces, and its move by them (see :func:`blow_grid`)"""
+    n = P.shape[1]
+    pad = T.shape[2] - n
+    for c in range(3):
+        xq = P[c]
+        t0, t0l, t0u = T[0, c, pad:], T[0, c, pad - 1:], T[0, c, pad - cols:]
+        t1l, t1u, t1d = T[1, c, pad - 1:], T[1, c, pad - cols:], T[1, c, pad - cols - 1:]
+        for q in range(n):
+            k = free[q] * dt2 * inv_mass[q]
+            xq[q] += k * ((t0[q] + t0l[q] + t0u[q]) + (t1l[q] + t1u[q] + t1d[q]))
