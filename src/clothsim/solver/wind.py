@@ -135,7 +135,7 @@ def blow(P, L, points, inv_mass, dt2, wind, W, s):
     :func:`blow_grid`, whose branch-free form of the same forces
     (:func:`_corner_force`) vectorises there; in this loop, whose corners are
     indexed, it does not, and ran slower than these branches (111 against 80
-    µs a call on a 50×50 cloth with lift; docs/performance.md, 'Wind')."""
+    µs a call on a 50×50 cloth with lift; docs/performance.md, 'Wind as stencils')."""
     if wind is None:
         return
     tris, free = points.triangles, points.free
