@@ -79,7 +79,7 @@ def calls(variant: str) -> list:
     from .colliders import collide, has_settle, settle, settle_needs_q
     from .control import make_control
     from .handles import place_handles
-    from .wind import blow
+    from .wind import blow, blow_grid, wind_buffer
     from .groups import Knobs, Points, Scratch
     from .selfcollide import NeighbourList
     from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs
@@ -132,12 +132,14 @@ def calls(variant: str) -> list:
             (_copy_pairs, (lists.pairs, lists.pairs, zero)),
             (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
             (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
-    out += [(blow, (P, L, points, knobs.inv_mass, knobs.dt2, control.wind, scratch.W, zero)),
-            (place_handles, (P, control.moved_points, control.moved_to, zero))]
+    out += [(place_handles, (P, control.moved_points, control.moved_to, zero))]
     if mesh:
+        out += [(blow, (P, L, points, knobs.inv_mass, knobs.dt2, control.wind, scratch.W, zero))]
         out = [(k, a) for k, a in out if k is not _provot_both] + _mesh_calls(rest, pinned, P, L, points)
     else:
-        out += [(gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
+        out += [(blow_grid, (P, L, points.free, springs.valid[0], knobs.inv_mass, knobs.dt2, control.wind,
+                             wind_buffer(n, cols), zero, springs.end[1])),
+                (gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
                 (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero))]
     out += [(_to_planes, (np.zeros((n, 3)), P)),
             (_from_planes, (P, np.zeros((n, 3)))),
