@@ -111,9 +111,9 @@ class Simulation:
         self.wind = copy.deepcopy(self.scene.wind)
         self._mesh_shapes = None
         if self.mesh_colliders:
-            from .solver.colliders.mesh import pack_meshes
+            from .solver.colliders.mesh import pack_meshes, with_hints
 
-            self._mesh_shapes = pack_meshes(self.mesh_colliders)
+            self._mesh_shapes = with_hints(pack_meshes(self.mesh_colliders), self.model.num_points)
         self.state = State.at_rest(self.model)
         self._normals: np.ndarray | None = None
         self._handle = -1

@@ -9,8 +9,9 @@ from .groups import Control
 from .handles import pack_handles
 from .wind import pack_wind
 
-MESH_FIELDS = ("mesh_tris", "mesh_grid", "mesh_cells", "mesh_items", "mesh_slabs")
-"""the fields of a mesh collider's shape: built once per scene, not per frame"""
+MESH_FIELDS = ("mesh_tris", "mesh_grid", "mesh_cells", "mesh_items", "mesh_slabs", "mesh_prisms", "mesh_hints")
+"""the fields of a mesh collider's shape: built once per scene, not per frame (the
+hints are the points' last crossed triangles, which the kernels keep)"""
 
 
 def make_control(handle: int, handle_pos, world, t0: float = 0.0, dt: float = 0.0, substeps: int = 1,

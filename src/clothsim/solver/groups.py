@@ -111,6 +111,12 @@ class Control(NamedTuple):
     """the triangles of each cell, then each mesh's cell status entries, int32"""
     mesh_slabs: np.ndarray | None
     """each cell's clear side, float64 (S, 4): see :mod:`.colliders.meshslab`"""
+    mesh_prisms: np.ndarray | None
+    """each triangle's clear prism, float64 (Ttot, 14): see :mod:`.colliders.meshprism`"""
+    mesh_hints: np.ndarray | None
+    """each point's last crossed triangle per mesh collider, or -1, int32 (K, N) (N may
+    be 0: no hints): the collider kernels write it, and try it before they search; a
+    guess that never changes their results (see :mod:`.colliders.mesh`)"""
     moved_points: np.ndarray | None
     """the points of every handle, int64 (H,): see :mod:`.handles`"""
     moved_to: np.ndarray | None

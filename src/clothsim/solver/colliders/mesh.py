@@ -31,6 +31,13 @@ that centre (it stays in the cell, so only the cell's triangles can cross
 it). Where that segment passes within rounding of an edge or corner the
 answer is 'outside' (the point is left as it is that substep).
 
+Each point keeps, per mesh, the triangle it last crossed (``mesh_hints``): a
+resting point crosses the same one substep after substep, and that
+triangle's clear prism (:mod:`.meshprism`) decides its segment at the cost
+of two heights and six dot products, before any search, where it lies in
+the prism. The answer is the search's: the prism holds no other triangle,
+so a hint, right, stale or wrong, never changes where a point goes.
+
 :func:`settle_meshes` runs the same crossing test, in the now pose, without
 friction, on the segment from the positions after the collider pass to the
 positions after a later constraint pass.
@@ -47,8 +54,9 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS
-from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, INSIDE_BITS, NEAR,
-                       T_NORMAL, T_OFFSET, UNKNOWN, cell_coord)
+from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_STATUS0, G_TRI0,
+                       INSIDE_BITS, NEAR, T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, plane_slack)
+from .meshprism import P_DOWN, P_UP, in_prism
 from .meshslab import clear_side, pack_meshes
 
 POSE_FIELDS = 26
@@ -77,6 +85,12 @@ def pose_rows(R_now, o_now, R_before, o_before, friction, margin) -> np.ndarray:
     return out
 
 
+def with_hints(packed: dict, points: int) -> dict:
+    """The mesh fields of :func:`pack_meshes` with room for the hints of ``points``
+    points (none yet: -1), for a simulation to keep from substep to substep."""
+    return {**packed, "mesh_hints": np.full((len(packed["mesh_grid"]), points), -1, dtype=np.int32)}
+
+
 def pack_poses(colliders, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -> np.ndarray:
     """The ``meshes`` field for a frame from ``t0`` of ``substeps`` substeps of ``dt``
     [s]: pose rows (T, K, 26) from objects with ``pivot``, ``animation`` (or None),
@@ -92,22 +106,13 @@ def pack_poses(colliders, t0: float = 0.0, dt: float = 0.0, substeps: int = 1) -
 
 # --- a mesh's grid row, read once ----------------------------------------------------
 
-PLANE_SLACK = 1e-6
-"""a triangle's plane is taken to separate two points only where both are more than
-this many cell sizes (plus rounding of their coordinates) off it on one side; the
-exact test decides the rest"""
-
-
 @njit(**EXACT_OPTIONS, inline="always")
 def _grid_scalars(g):
     """The fields of grid row ``g`` that the searches read, read once per mesh:
     (ox, oy, oz, hix, hiy, hiz, h, 1/h, nx, ny, nz, first cell, first inside flag,
-    the plane slack [m])."""
-    big = max(abs(g[G_ORIGIN]), abs(g[G_ORIGIN + 1]), abs(g[G_ORIGIN + 2]),
-              abs(g[G_HI]), abs(g[G_HI + 1]), abs(g[G_HI + 2]))
+    the plane slack [m] (:func:`.meshgrid.plane_slack`))."""
     return (g[G_ORIGIN], g[G_ORIGIN + 1], g[G_ORIGIN + 2], g[G_HI], g[G_HI + 1], g[G_HI + 2], g[G_H],
-            g[G_INV_H], g[G_DIMS], g[G_DIMS + 1], g[G_DIMS + 2], g[G_CELL0], g[G_STATUS0],
-            PLANE_SLACK * g[G_H] + 1e-12 * big)
+            g[G_INV_H], g[G_DIMS], g[G_DIMS + 1], g[G_DIMS + 2], g[G_CELL0], g[G_STATUS0], plane_slack(g))
 
 
 WALK_REACH = 1e-6
@@ -298,6 +303,64 @@ def _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin):
 
 
 @njit(**EXACT_OPTIONS, inline="always")
+def _by_hint(tris, prisms, t, x0, y0, z0, x1, y1, z1, G, closed, margin, keep, friction):
+    """What the kernel does with the segment q0 -> q1 (rest frame, finite), decided by
+    the clear prism of triangle t (:mod:`.meshprism`) where it can be, without a
+    search: (route, x, y, z), for a placement by the friction rule with ``keep``
+    (1 - friction) where ``friction`` (the collider pass; the settle pass puts a
+    point on the surface): route 1 for nothing (it meets no triangle and, for a
+    closed mesh, ends outside), 2 for q1 placed at (x, y, z) (it crosses t first, and
+    the placement, friction and all, ends in t's clear prism on q0's side, so it
+    crosses nothing and ends outside), 0 where the prism cannot tell (an end
+    outside it, a placement on t within rounding). Where it tells, the
+    answer is the search's: the same crossing test on t, and no other triangle
+    that the search could find first."""
+    tiny = G[13]
+    if not (in_prism(prisms, t, x0, y0, z0) and in_prism(prisms, t, x1, y1, z1)):
+        return 0, x1, y1, z1
+    up, down = prisms[t, P_UP], prisms[t, P_DOWN]
+    nx, ny, nz, w = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET]
+    h0 = nx * x0 + ny * y0 + nz * z0 - w
+    h1 = nx * x1 + ny * y1 + nz * z1 - w
+    if h0 > tiny and h0 <= up and h1 > tiny and h1 <= up:
+        return 1, x1, y1, z1
+    if closed:
+        # only entries count: a start on the plane (within the slack) is the search's to judge
+        side, room = 1.0, up
+        if not (h0 >= -tiny and h0 <= up):
+            return 0, x1, y1, z1
+    else:
+        side, room = (1.0, up) if h0 > tiny else (-1.0, down)
+        if not (side * h0 > tiny and side * h0 <= room):
+            return 0, x1, y1, z1
+        if side * h1 > tiny and side * h1 <= room:
+            return 1, x1, y1, z1
+    dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+    slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
+    if not _hit(tris, t, x0, y0, z0, dx, dy, dz, BARY_TOL, closed, slack)[0] <= 1.0:
+        return 0, x1, y1, z1
+    x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
+    if friction:  # as the kernels place a point, to the bit
+        x, y, z = x0 + keep * (x - x0), y0 + keep * (y - y0), z0 + keep * (z - z0)
+    hc = side * (nx * x + ny * y + nz * z - w)
+    if not hc <= room:
+        return 0, x1, y1, z1
+    if hc > tiny:
+        return 2, x, y, z
+    # a placement nearer t's plane than the slack (a point resting on the surface
+    # stays as near as it was): the search after it could find t again, and would
+    # then leave the point at q0; it finds no other triangle, and a point this far
+    # out, beyond the rounding of its height, the inside test finds outside
+    if not hc > 1e-13 * (abs(x) + abs(y) + abs(z)):
+        return 0, x1, y1, z1
+    ex, ey, ez = x - x0, y - y0, z - z0
+    slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(ex) + abs(ey) + abs(ez))
+    if _hit(tris, t, x0, y0, z0, ex, ey, ez, BARY_TOL, closed, slack)[0] <= 1.0:
+        return 0, x1, y1, z1
+    return 2, x, y, z
+
+
+@njit(**EXACT_OPTIONS, inline="always")
 def _inside(tris, cells, items, G, x, y, z):
     """Whether (x, y, z) (rest frame, finite) is inside the closed mesh of grid scalars
     ``G``: its cell's inside flag, which alone decides a cell without triangles,
@@ -452,6 +515,14 @@ def _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
             or max(z0, z1) + reach < G[2] or min(z0, z1) - reach > G[5])
 
 
+@njit(**EXACT_OPTIONS, inline="always")
+def _tri_range(g, tris, prisms):
+    """(first, end) of the rows of ``mesh_tris`` that hold the triangles of grid row
+    ``g``'s mesh and have a prism: the hints outside it are not tried."""
+    first = max(int(g[G_TRI0]), 0)
+    return first, max(min(first + int(g[G_NTRI]), tris.shape[0], prisms.shape[0]), first)
+
+
 @njit(**EXACT_OPTIONS)
 def _pose(meshes, grid, s, k):
     """The pose row of mesh k for substep slot s, or an empty one when it is not finite
@@ -483,7 +554,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
     if meshes is None:
         return
     tris, grid, cells, items = control.mesh_tris, control.mesh_grid, control.mesh_cells, control.mesh_items
-    slabs = control.mesh_slabs
+    slabs, prisms, hints = control.mesh_slabs, control.mesh_prisms, control.mesh_hints
     if meshes.shape[0] == 0:
         return
     lo = max(lo, 0)
@@ -500,6 +571,8 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         margin = max(m[25], 0.0)
         closed = g[G_CLOSED] != 0.0
         short = g[G_H] - 2.0 * reach
+        first, last = _tri_range(g, tris, prisms)
+        hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0  # the points below keep hints
         for p in range(lo, hi):
             if free[p] == 0.0:
                 continue
@@ -507,11 +580,21 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
             x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
                 continue
+            hint = hints[k, p] if p < hinted else -1
+            if hint >= first and hint < last:
+                route, x, y, z = _by_hint(tris, prisms, hint, x0, y0, z0, x1, y1, z1, G, closed, margin, keep, True)
+                if route == 2:
+                    wx, wy, wz = _to_world(now, x, y, z)
+                    P[0, p], P[1, p], P[2, p] = wx, wy, wz
+                if route != 0:
+                    continue
             if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, closed)
                     or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed)):
                 continue
             _, t, _, outer = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             moved = t >= 0
+            if moved and p < hinted:
+                hints[k, p] = t
             x, y, z = x1, y1, z1
             if moved:
                 sx, sy, sz = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
@@ -552,7 +635,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
     if meshes is None:
         return
     tris, grid, cells, items = control.mesh_tris, control.mesh_grid, control.mesh_cells, control.mesh_items
-    slabs = control.mesh_slabs
+    slabs, prisms, hints = control.mesh_slabs, control.mesh_prisms, control.mesh_hints
     if meshes.shape[0] == 0:
         return
     lo = max(lo, 0)
@@ -568,6 +651,8 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         margin = max(m[25], 0.0)
         closed = g[G_CLOSED] != 0.0
         short = g[G_H] - 2.0 * reach
+        first, last = _tri_range(g, tris, prisms)
+        hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0
         for p in range(lo, hi):
             if free[p] == 0.0:
                 continue
@@ -579,12 +664,23 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
             x1, y1, z1 = _to_rest(now, px, py, pz)
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
                 continue
+            hint = hints[k, p] if p < hinted else -1
+            if hint >= first and hint < last:
+                # no friction: the placement is the surface point, as below
+                route, x, y, z = _by_hint(tris, prisms, hint, x0, y0, z0, x1, y1, z1, G, closed, margin, 1.0, False)
+                if route == 2:
+                    wx, wy, wz = _to_world(now, x, y, z)
+                    P[0, p], P[1, p], P[2, p] = wx, wy, wz
+                if route != 0:
+                    continue
             if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, False)
                     or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, False)):
                 continue
             _, t, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             if t < 0:
                 continue
+            if p < hinted:
+                hints[k, p] = t
             x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
             if not clear_side(items, slabs, G, x0, y0, z0, x, y, z, False):
                 _, again, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x, y, z, reach, closed)
@@ -628,4 +724,5 @@ def _count_tests(P, L, free, meshes, control, lo, hi, s, out):
                 out[p] += _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)[2]
 
 
-__all__ = ["POSE_FIELDS", "collide_meshes", "count_tests", "pack_meshes", "pose_rows", "settle_meshes"]
+__all__ = ["POSE_FIELDS", "collide_meshes", "count_tests", "pack_meshes", "pose_rows", "settle_meshes",
+           "with_hints"]

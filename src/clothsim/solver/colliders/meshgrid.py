@@ -88,6 +88,21 @@ of a triangle's plane against it: well beyond the kernels' reach (WALK_REACH) an
 the rounding of the test, so no triangle is left out of a cell it touches"""
 
 
+PLANE_SLACK = 1e-6
+"""a triangle's plane is taken to separate two points only where both are more than
+this many cell sizes (plus rounding of their coordinates) off it on one side; the
+exact test decides the rest"""
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def plane_slack(g):
+    """PLANE_SLACK [m] for grid row ``g``, with the rounding of coordinates as large
+    as its box's: the searches' margin on each triangle's plane."""
+    big = max(abs(g[G_ORIGIN]), abs(g[G_ORIGIN + 1]), abs(g[G_ORIGIN + 2]),
+              abs(g[G_HI]), abs(g[G_HI + 1]), abs(g[G_HI + 2]))
+    return PLANE_SLACK * g[G_H] + 1e-12 * big
+
+
 # --- cells -----------------------------------------------------------------------
 
 @njit(**EXACT_OPTIONS, inline="always")

@@ -30,6 +30,7 @@ from numba import njit
 from ..shared import EXACT_OPTIONS
 from .meshgrid import (CELL_PAD, G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, HOLDS,
                        INSIDE_BITS, T_NORMAL, _ray_x_crossing, cell_coord, pack_grids)
+from .meshprism import pack_prisms
 
 SLAB_SHIFT = 4
 """the status bits below a cell's slab number (inside flag, NEAR, HOLDS)"""
@@ -180,7 +181,9 @@ def _fill_slabs(tris, g, cells, items, slabs, first):
 def pack_meshes(shapes: Sequence) -> dict | None:
     """The mesh fields of the solver's control group from objects with ``vertices``
     (V, 3) [m] in the rest pose, ``triangles`` (F, 3) and ``closed``; None when there
-    are none: the grid's arrays (:func:`.meshgrid.pack_grids`) and ``mesh_slabs``."""
+    are none: the grid's arrays (:func:`.meshgrid.pack_grids`), ``mesh_slabs``, the
+    triangles' ``mesh_prisms`` (:mod:`.meshprism`) and ``mesh_hints`` int32 (K, 0):
+    no point's hint kept (:func:`.mesh.with_hints` gives room for them)."""
     packed = pack_grids(shapes)
     if packed is None:
         return None
@@ -191,4 +194,6 @@ def pack_meshes(shapes: Sequence) -> dict | None:
     for g in packed["mesh_grid"]:
         used = _fill_slabs(packed["mesh_tris"], g, cells, items, slabs, np.int64(used))
     packed["mesh_slabs"] = slabs[:used].copy()
+    packed["mesh_prisms"] = pack_prisms(packed)
+    packed["mesh_hints"] = np.full((len(packed["mesh_grid"]), 0), -1, dtype=np.int32)
     return packed

@@ -1,0 +1,197 @@
+"""Each mesh triangle's clear prism: where a point's path is known to meet that triangle first.
+
+A cloth resting on a mesh crosses its surface at almost every point in
+contact, every substep, and each such point's search tries the triangles of
+the cells its segment passes, their planes and Moller-Trumbore tests: that
+search was most of what a draped cloth paid. Yet a resting point crosses
+the same triangle substep after substep. :func:`pack_prisms` gives every
+triangle T of ``mesh_tris`` a row of ``mesh_prisms`` float64 (T, PRISM_FIELDS):
+
+- three edge planes in T's plane, inward unit normals m and offsets d [m],
+  the offsets moved in by the inset (:func:`_inset`): a point q lies over T,
+  away from its edges, where ``m . q >= d`` for all three (the prism over T
+  along its normal, a little narrower than T);
+- ``up`` and ``down`` [m]: how far above and below T's plane (``n . q -
+  offset`` as in ``mesh_tris``) the prism over the whole of T holds no point
+  of any other triangle of the mesh (the prism half an inset wider here), less
+  the inset; capped at PRISM_CAP
+  cells of the mesh's grid, 0 where another triangle reaches T's plane inside
+  it (a mesh that cuts itself, a triangle given twice).
+
+A segment whose ends both lie in the narrower prism, between ``-down`` and
+``up``, can meet no triangle but T, and none that a search's slack would
+widen into it: it crosses T where the search's own test on T says so, and
+nothing otherwise; above T it is outside a closed mesh (that part of the
+prism is free of the surface and touches T's outer side). The kernels of
+:mod:`.mesh` try that first for a point's last crossed triangle, its hint.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..shared import EXACT_OPTIONS
+from .meshgrid import (G_CELL0, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_TRI0, T_NORMAL, T_OFFSET,
+                       cell_coord, plane_slack)
+
+PRISM_FIELDS = 14
+P_UP, P_DOWN = 12, 13
+"""the columns of a row of ``mesh_prisms``: three edge planes (m (3), d each), up, down"""
+
+EDGE_INSET = 1e-5
+"""how far the prism's sides stand inside the triangle's edges, in units of its
+longest edge (plus WIDE_INSET of the mesh's size): far beyond the searches'
+barycentric slack (1e-9 of a triangle) and the rounding of the tests, so a
+segment in the prism never reaches a neighbour as the search sees it"""
+
+WIDE_INSET = 1e-8
+"""the part of the inset in units of the mesh's size: the barycentric slack of the
+largest triangle beside a small one"""
+
+PRISM_CAP = 1.0
+"""the most ``up`` and ``down`` are, in cells of the mesh's grid: far more than a
+resting point's height over the surface, and it bounds the cells read to build them"""
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def in_prism(prisms, t, x, y, z):
+    """Whether (x, y, z) (rest frame) lies over triangle t within its prism's sides."""
+    r = prisms[t]
+    return (r[0] * x + r[1] * y + r[2] * z >= r[3] and r[4] * x + r[5] * y + r[6] * z >= r[7]
+            and r[8] * x + r[9] * y + r[10] * z >= r[11])
+
+
+# --- building ----------------------------------------------------------------------
+
+@njit(**EXACT_OPTIONS)
+def _clip(poly, count, spare, a, b, c, d):
+    """Clip the convex polygon ``poly[:count]`` (rows of 3) to ``a x + b y + c z >= d``
+    into ``spare``; returns the new count."""
+    out = 0
+    for i in range(count):
+        j = i + 1 if i + 1 < count else 0
+        si = a * poly[i, 0] + b * poly[i, 1] + c * poly[i, 2] - d
+        sj = a * poly[j, 0] + b * poly[j, 1] + c * poly[j, 2] - d
+        if si >= 0.0:
+            spare[out] = poly[i]
+            out += 1
+        if (si >= 0.0) != (sj >= 0.0):
+            f = si / (si - sj)
+            for k in range(3):
+                spare[out, k] = poly[i, k] + f * (poly[j, k] - poly[i, k])
+            out += 1
+    return out
+
+
+@njit(**EXACT_OPTIONS)
+def _edge_planes(tris, t, wide, out):
+    """The inward edge planes of triangle t into ``out[0:12]``, through its edges, and
+    the inset [m] (EDGE_INSET of its longest edge plus ``wide``); 0 for a zero-area
+    triangle or a sliver whose corners stand nearer their opposite edges than four
+    insets (it gets no prism)."""
+    nx, ny, nz = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2]
+    longest = 0.0
+    for e in range(3):
+        a, b = 3 * e, 3 * ((e + 1) % 3)
+        ex, ey, ez = tris[t, b] - tris[t, a], tris[t, b + 1] - tris[t, a + 1], tris[t, b + 2] - tris[t, a + 2]
+        longest = max(longest, np.sqrt(ex * ex + ey * ey + ez * ez))
+        mx, my, mz = ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex  # n x edge points inward
+        length = np.sqrt(mx * mx + my * my + mz * mz)
+        if not length > 0.0:
+            return 0.0
+        mx, my, mz = mx / length, my / length, mz / length
+        out[4 * e], out[4 * e + 1], out[4 * e + 2] = mx, my, mz
+        out[4 * e + 3] = mx * tris[t, a] + my * tris[t, a + 1] + mz * tris[t, a + 2]
+    inset = EDGE_INSET * longest + wide
+    for e in range(3):
+        c = 3 * ((e + 2) % 3)
+        if not (out[4 * e] * tris[t, c] + out[4 * e + 1] * tris[t, c + 1] + out[4 * e + 2] * tris[t, c + 2]
+                - out[4 * e + 3] > 4.0 * inset):
+            return 0.0
+    return inset
+
+
+@njit(**EXACT_OPTIONS)
+def _clearance(tris, t, u, edges, inset, poly, spare, band):
+    """(how far above, how far below) T's plane [m] triangle u leaves T's prism free,
+    less ``band``: inf on a side u does not reach, 0 where u reaches within ``band`` of
+    the plane inside it. The prism here stands half the ``inset`` [m] inside T's
+    edges (``edges``, through them), so that the neighbours that share an edge or a
+    corner with T stay out of it, and half an inset outside the one the kernels
+    test: farther than any slack the search gives a triangle."""
+    count = 3
+    for k in range(3):
+        poly[k, 0], poly[k, 1], poly[k, 2] = tris[u, 3 * k], tris[u, 3 * k + 1], tris[u, 3 * k + 2]
+    for e in range(3):
+        count = _clip(poly, count, spare, edges[4 * e], edges[4 * e + 1], edges[4 * e + 2],
+                      edges[4 * e + 3] + 0.5 * inset)
+        poly, spare = spare, poly
+        if count == 0:
+            return np.inf, np.inf
+    pnx, pny, pnz, w = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET]
+    hmin, hmax = np.inf, -np.inf
+    for k in range(count):
+        hv = pnx * poly[k, 0] + pny * poly[k, 1] + pnz * poly[k, 2] - w
+        hmin, hmax = min(hmin, hv), max(hmax, hv)
+    up = max(hmin - band, 0.0) if hmax >= -band else np.inf
+    down = max(-hmax - band, 0.0) if hmin <= band else np.inf
+    return up, down
+
+
+@njit(**EXACT_OPTIONS)
+def _fill_prisms(tris, g, cells, items, prisms):
+    """The prism rows of the triangles of grid row ``g``'s mesh: each triangle against
+    every triangle listed in the cells its capped prism's box overlaps (a triangle
+    that reaches into the prism is listed in the cell that holds such a point)."""
+    t0, nt = int(g[G_TRI0]), int(g[G_NTRI])
+    ox, oy, oz, h, inv = g[G_ORIGIN], g[G_ORIGIN + 1], g[G_ORIGIN + 2], g[G_H], g[G_INV_H]
+    nx, ny, nz = g[G_DIMS], g[G_DIMS + 1], g[G_DIMS + 2]
+    inx, iny = int(nx), int(ny)
+    c0 = int(g[G_CELL0])
+    cap = PRISM_CAP * h
+    extent = max(g[G_HI] - ox, g[G_HI + 1] - oy, g[G_HI + 2] - oz)
+    wide = WIDE_INSET * (max(extent, 0.0) + h)
+    slack = plane_slack(g)
+    poly, spare = np.empty((8, 3)), np.empty((8, 3))
+    edges = np.empty(12)
+    lo, hi = np.empty(3), np.empty(3)
+    for t in range(max(t0, 0), min(t0 + nt, tris.shape[0], prisms.shape[0])):
+        prisms[t, :] = 0.0
+        prisms[t, 3] = np.inf
+        inset = _edge_planes(tris, t, wide, edges)
+        if not inset > 0.0:
+            continue
+        band = inset + 4.0 * slack
+        up, down = cap, cap
+        lo[:], hi[:] = np.inf, -np.inf
+        for k in range(3):
+            for a in range(3):
+                v, d = tris[t, 3 * k + a], cap * abs(tris[t, T_NORMAL + a])
+                lo[a], hi[a] = min(lo[a], v - d), max(hi[a], v + d)
+        ix0, ix1 = cell_coord(lo[0], ox, inv, nx), cell_coord(hi[0], ox, inv, nx)
+        iy0, iy1 = cell_coord(lo[1], oy, inv, ny), cell_coord(hi[1], oy, inv, ny)
+        iz0, iz1 = cell_coord(lo[2], oz, inv, nz), cell_coord(hi[2], oz, inv, nz)
+        for iz in range(iz0, iz1 + 1):
+            for iy in range(iy0, iy1 + 1):
+                base = c0 + (iz * iny + iy) * inx
+                for j in range(cells[base + ix0], cells[base + ix1 + 1]):
+                    u = items[j]
+                    if u != t:
+                        a, b = _clearance(tris, t, u, edges, inset, poly, spare, band)
+                        up, down = min(up, a), min(down, b)
+        for e in range(3):
+            prisms[t, 4 * e:4 * e + 3] = edges[4 * e:4 * e + 3]
+            prisms[t, 4 * e + 3] = edges[4 * e + 3] + inset
+        prisms[t, P_UP], prisms[t, P_DOWN] = up, down
+
+
+def pack_prisms(packed: dict) -> np.ndarray:
+    """``mesh_prisms`` (T, PRISM_FIELDS) for the arrays of :func:`.meshgrid.pack_grids`
+    (an edge plane no point lies over, for a triangle without a prism)."""
+    tris = packed["mesh_tris"]
+    prisms = np.zeros((tris.shape[0], PRISM_FIELDS))
+    prisms[:, 3] = np.inf
+    for g in packed["mesh_grid"]:
+        _fill_prisms(tris, g, packed["mesh_cells"], packed["mesh_items"], prisms)
+    return prisms

@@ -1,0 +1,155 @@
+"""The mesh collider's clear prisms and hints (solver/colliders/meshprism.py, mesh.py).
+
+Each point keeps the triangle it last crossed, and the kernels settle its
+segment by that triangle's clear prism before any search. These tests check
+the promise the shortcut rests on (no other triangle reaches into a prism),
+that it is taken, and that it never changes where a point goes: the same
+positions, bit for bit, with right, stale, wrong or no hints.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import trimesh
+
+from clothsim import Simulation
+from clothsim.scene import parse_scene
+from clothsim.solver.colliders.mesh import pack_meshes, with_hints
+from clothsim.solver.colliders.meshgrid import G_H
+from clothsim.solver.colliders.meshprism import P_DOWN, P_UP
+from clothsim.standard_scenes import scene_path
+
+from .test_mesh_collider import Ctl, face_distance, planes, run, shape, sphere, square, static
+from .test_mesh_slabs import settle_run, torus
+
+
+def crossing_squares():
+    """two open squares that cut each other along a line: a mesh that intersects itself"""
+    a = [[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]]
+    b = [[-0.5, 0.0, -0.5], [0.5, 0.0, -0.5], [0.5, 0.0, 0.5], [-0.5, 0.0, 0.5]]
+    return shape(a + b, [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], closed=False)
+
+
+def hinted(shapes, poses, points):
+    return Ctl(meshes=np.asarray(poses)[None], **with_hints(pack_meshes(shapes), points))
+
+
+def samples(corners, per=24, seed=0):
+    """(T * per, 3) points spread over each triangle of (T, 3, 3), its corners and edges included"""
+    rng = np.random.default_rng(seed)
+    w = rng.dirichlet([0.6, 0.6, 0.6], size=(len(corners), per))
+    w[:, :3] = np.eye(3)
+    return np.einsum("tsk,tkd->tsd", w, corners).reshape(-1, 3), np.repeat(np.arange(len(corners)), per)
+
+
+def test_no_other_triangle_reaches_into_a_triangles_clear_prism():
+    """points spread over every triangle of a torus, an open square and two squares
+    that cut each other: none lies over another triangle, inside its prism, within
+    its heights; a smooth torus leaves most prisms their full height, and where
+    the squares cross, the prisms that the cut passes through have none"""
+    for mesh, full in ((torus(), 0.9), (square(half=0.5), 1.0), (crossing_squares(), 0.0)):
+        packed = pack_meshes([mesh])
+        tris, prisms, h = packed["mesh_tris"], packed["mesh_prisms"], packed["mesh_grid"][0, G_H]
+        corners = tris[:, :9].reshape(-1, 3, 3)
+        points, owner = samples(corners)
+        n, w = tris[:, 9:12], tris[:, 12]
+        for t in range(len(tris)):
+            r = prisms[t]
+            inside = np.all(np.stack([points @ r[4 * e:4 * e + 3] >= r[4 * e + 3] for e in range(3)]), axis=0)
+            height = points @ n[t] - w[t]
+            reached = inside & (height <= r[P_UP]) & (height >= -r[P_DOWN]) & (owner != t)
+            assert not reached.any(), (t, points[reached][:3])
+        assert np.mean(prisms[:, P_UP] == h) >= full
+        if full == 0.0:  # each square is cut through its middle: no triangle is free both ways
+            assert np.all(np.maximum(prisms[:, P_UP], prisms[:, P_DOWN]) == 0.0)
+
+
+def random_segments(n, seed):
+    """segments near the torus and the square of the mix below, half of them short and
+    long moves anywhere, half from just over the torus's surface into it, as a cloth
+    resting on it moves"""
+    rng = np.random.default_rng(seed)
+    half = n // 2
+    start = rng.uniform(-0.85, 0.85, (half, 3)) * [1.0, 1.0, 0.45]
+    end = start + rng.normal(size=(half, 3)) * rng.choice([0.0005, 0.002, 0.01, 0.05], size=(half, 1))
+    m = torus()
+    corners = m.vertices[m.triangles]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    points, owner = samples(corners, per=8, seed=seed)
+    pick = rng.choice(len(points), n - half)
+    up = normals[owner[pick]]
+    rest = points[pick] + up * rng.uniform(0.0, 0.003, (n - half, 1))
+    fall = rest - up * rng.uniform(0.0, 0.006, (n - half, 1)) + rng.normal(size=(n - half, 3)) * 0.001
+    return planes(np.concatenate([start, rest])), planes(np.concatenate([end, fall]))
+
+
+def test_hints_right_stale_wrong_or_none_give_the_same_positions():
+    """random segments near a torus (closed) and an open square: the positions after
+    the collider pass and after the settle pass are the same, bit for bit, without
+    hints, with the hints the first pass left, with hints of another set of
+    segments, and with random numbers (other meshes' triangles, -1, out of range)"""
+    shapes = [torus(), square(z=0.31, half=0.5)]
+    poses = static(friction=0.3, k=2)
+    n = 6000
+    L, P0 = random_segments(n, 11)
+    plain = Ctl(meshes=np.asarray(poses)[None], **pack_meshes(shapes))
+    assert plain.mesh_hints.shape == (2, 0)
+    want = run(plain, P0.copy(), L)
+    want_settled = settle_run(plain, P0.copy(), L)
+    assert np.any(want != P0)
+
+    ctl = hinted(shapes, poses, n)
+    first = run(ctl, P0.copy(), L)
+    np.testing.assert_array_equal(first, want)
+    right = ctl.mesh_hints.copy()
+    assert (right >= 0).sum() > 1000  # the crossings were kept
+    stale = hinted(shapes, poses, n)
+    run(stale, *random_segments(n, 12)[::-1])
+    rng = np.random.default_rng(3)
+    wrong = rng.integers(-5, len(plain.mesh_tris) + 5, size=(2, n)).astype(np.int32)
+    for hints in (right, stale.mesh_hints, wrong):
+        np.testing.assert_array_equal(run(ctl._replace(mesh_hints=hints.copy()), P0.copy(), L), want)
+        np.testing.assert_array_equal(settle_run(ctl._replace(mesh_hints=hints.copy()), P0.copy(), L),
+                                      want_settled)
+
+
+def test_a_point_resting_on_its_triangle_is_placed_by_the_hint_alone():
+    """points a few millimetres over a mesh ball (20,480 triangles), falling through
+    it: with their hints and the cells' lists emptied (no search can find a
+    triangle) they land where the full search puts them, and none inside"""
+    ball = sphere(radius=0.5, subdivisions=5)
+    rng = np.random.default_rng(2)
+    d = rng.normal(size=(2000, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    start = d * (0.5 + rng.uniform(0.0005, 0.003, (2000, 1)))
+    end = start - d * rng.uniform(0.004, 0.006, (2000, 1))
+    ctl = hinted([ball], static(friction=0.5), 2000)
+    want = run(ctl, planes(end), planes(start))
+    blind = ctl._replace(mesh_cells=np.zeros_like(ctl.mesh_cells))
+    assert np.array_equal(run(blind._replace(mesh_hints=np.full((1, 2000), -1, np.int32)), planes(end),
+                              planes(start)), planes(end))  # no search finds anything
+    got = run(blind, planes(end), planes(start))
+    placed = np.all(got == want, axis=0)
+    assert placed.mean() > 0.99, placed.mean()
+    assert np.all(face_distance(ctl.mesh_tris, got.T[placed]) > 0.0)
+
+
+def test_a_simulation_with_hints_runs_as_it_would_without_them(tmp_path):
+    """sphere.json at 24x24 on two threads, its sphere a mesh ball: the same positions
+    after 1.5 s with the kept hints and with none, and the hints were used"""
+    scene = json.loads(scene_path("sphere").read_text())
+    sphere_spec = scene.pop("sphere")
+    scene["cloth"].update(num_width_points=24, num_height_points=24)
+    trimesh.creation.icosphere(subdivisions=4).export(tmp_path / "ball.obj")
+    scene["mesh"] = {"path": "ball.obj", "friction": sphere_spec["friction"],
+                     "transform": {"scale": sphere_spec["radius"], "translate": sphere_spec["origin"]}}
+    sims = [Simulation(parse_scene(scene, str(tmp_path / "s.json")), threads=2) for _ in range(2)]
+    sims[1]._mesh_shapes["mesh_hints"] = np.full((1, 0), -1, np.int32)
+    for sim in sims:
+        sim.run(1.5)
+    np.testing.assert_array_equal(sims[0].positions, sims[1].positions)
+    assert (sims[0]._mesh_shapes["mesh_hints"] >= 0).sum() > 100
+    assert sims[0].positions[:, 1].min() < sphere_spec["origin"][1]  # it drapes over the ball
