@@ -9,8 +9,19 @@ of one :func:`collide_meshes` call over all points (best of several repeats of
 many calls, each on fresh copies of the positions) and the triangles tested
 per point, with the time :func:`pack_meshes` takes.
 
-Beside it, in the same rounds (one collider timing, then one cloth timing, so
-a slow spell of the machine falls on both), what a 50x50 grid cloth with no
+That cloth keeps no hints (each point's last crossed triangle, whose clear
+prism settles a resting point's segment without a search): it times the
+search. A cloth draped on a mesh is timed too, as a run meets it:
+``sphere.json`` (50x50) with its sphere replaced by a closed icosphere of the
+same subdivisions, centre, radius and friction, run 1.5 s on one thread;
+from there one substep's springs and Verlet step, then the collider pass
+(``drape_collide_us``) on those positions and the settle pass
+(``drape_settle_us``) on what the Provot pass makes of them, with the hints the
+run kept and with none (``..._no_hints_us``; the positions are the same to the
+bit), and how many points each pass moved.
+
+Beside them, in the same rounds (the collider timings, then the cloth timings,
+so a slow spell of the machine falls on both), what a 50x50 grid cloth with no
 collider and no self-collision costs per substep (``cloth_substep_us``, the
 whole substep on one thread) and the part of it its springs take
 (``springs_us``: that run less the same run with every spring kind off);
@@ -20,7 +31,9 @@ each the best of the rounds.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -33,13 +46,19 @@ from common import emit, machine  # noqa: E402
 
 import clothsim  # noqa: E402
 from clothsim import Simulation  # noqa: E402
+from clothsim.scene import parse_scene  # noqa: E402
 from clothsim.solver.colliders.mesh import (  # noqa: E402
     collide_meshes,
     count_tests,
     pack_meshes,
     pose_rows,
+    settle_meshes,
 )
 from clothsim.solver.groups import Control  # noqa: E402
+from clothsim.solver.provot import provot  # noqa: E402
+from clothsim.solver.springs import integrate  # noqa: E402
+from clothsim.solver.step import _to_planes  # noqa: E402
+from clothsim.standard_scenes import scene_path  # noqa: E402
 
 CLOTH = Path(clothsim.__file__).resolve().parent / "scenes" / "pinned2.json"
 """a 50x50 cloth hanging from two corners, no collider"""
@@ -86,6 +105,55 @@ def substep_us(sim: Simulation, frames: int) -> float:
     return (time.perf_counter() - t) / (frames * sim.params.simulation_steps) * 1e6
 
 
+class Drape:
+    """A 50x50 cloth draped on a mesh ball as a run leaves it, and its next substep's
+    collider and settle passes, each callable on fresh copies, with or without hints."""
+
+    def __init__(self, ball: trimesh.Trimesh, folder: Path):
+        scene = json.loads(scene_path("sphere").read_text())
+        sphere = scene.pop("sphere")
+        ball.export(folder / "ball.obj")
+        scene["mesh"] = {"path": "ball.obj", "friction": sphere["friction"],
+                         "transform": {"scale": sphere["radius"], "translate": sphere["origin"]}}
+        sim = Simulation(parse_scene(scene, str(folder / "drape.json")), threads=1)
+        sim.run(1.5)
+        solver, knobs = sim.solver, sim.solver.knobs(sim.params)
+        self.ctl = sim.control
+        self.none = self.ctl._replace(mesh_hints=np.full((1, 0), -1, np.int32))
+        self.hints = self.ctl.mesh_hints.copy()
+        P, L = np.zeros_like(solver.scratch.P), np.zeros_like(solver.scratch.L)
+        _to_planes(sim.state.positions, P)
+        _to_planes(sim.state.last_positions, L)
+        self.free = solver.points.free
+        n = P.shape[1]
+        self.span = np.int64(0), np.int64(n), np.int64(0)
+        integrate(P, L, self.free, knobs, solver.springs, solver.scratch.F, self.span[0], self.span[1], self.span[0])
+        self.before, self.L = P, L  # the substep's positions before the colliders, and its last ones
+        self.Q = P.copy()
+        collide_meshes(self.Q, L, self.free, self.ctl._replace(mesh_hints=self.hints.copy()), *self.span)
+        self.after = self.Q.copy()
+        provot(self.after, solver.springs, knobs.enabled, solver.scratch.masks[0], self.span[0], self.span[1], False)
+        self.collided = int(np.any(self.Q != self.before, axis=0).sum())
+        self.settled = int(np.any(self.after != self.Q, axis=0).sum())
+
+    def time(self, settle: bool, hints: bool, calls: int) -> float:
+        """seconds per call of one pass over all points"""
+        start = self.after if settle else self.before
+        copies = [start.copy() for _ in range(calls)]
+        ctls = [self.ctl._replace(mesh_hints=self.hints.copy()) if hints else self.none for _ in range(calls)]
+        t = time.perf_counter()
+        for P, ctl in zip(copies, ctls):
+            if settle:
+                settle_meshes(P, self.Q, self.free, ctl, *self.span)
+            else:
+                collide_meshes(P, self.L, self.free, ctl, *self.span)
+        return (time.perf_counter() - t) / calls
+
+
+DRAPE_CASES = {"drape_collide_us": (False, True), "drape_collide_no_hints_us": (False, False),
+               "drape_settle_us": (True, True), "drape_settle_no_hints_us": (True, False)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subdivisions", type=int, default=5)
@@ -107,6 +175,8 @@ def main() -> None:
     copies = [P0.copy() for _ in range(args.calls)]
     collide_meshes(copies[0], L, free, ctl, lo, hi, s)  # compiles
     cloth, bare = bare_cloth(True), bare_cloth(False)
+    drape = Drape(ball, Path(tempfile.mkdtemp()))
+    drape_s = dict.fromkeys(DRAPE_CASES, np.inf)
     best, cloth_us, bare_us = np.inf, np.inf, np.inf
     for _ in range(args.repeats):
         copies = [P0.copy() for _ in range(args.calls)]
@@ -114,6 +184,8 @@ def main() -> None:
         for P in copies:
             collide_meshes(P, L, free, ctl, lo, hi, s)
         best = min(best, (time.perf_counter() - t) / args.calls)
+        for name, (settle, hints) in DRAPE_CASES.items():
+            drape_s[name] = min(drape_s[name], drape.time(settle, hints, args.calls))
         cloth_us = min(cloth_us, substep_us(cloth, args.frames))
         bare_us = min(bare_us, substep_us(bare, args.frames))
     tested = np.zeros(P0.shape[1], dtype=np.int64)
@@ -125,7 +197,10 @@ def main() -> None:
           "list_entries": int(packed["mesh_cells"][-1]), "pack_ms": round(pack_s * 1e3, 2),
           "us_per_substep": round(best * 1e6, 2), "cloth_substep_us": round(cloth_us, 2),
           "springs_us": round(cloth_us - bare_us, 2), "tested_mean": round(float(tested.mean()), 2),
-          "tested_median": float(np.median(tested)), "tested_max": int(tested.max()), "points_moved": moved})
+          "tested_median": float(np.median(tested)), "tested_max": int(tested.max()), "points_moved": moved,
+          **{name: round(v * 1e6, 2) for name, v in drape_s.items()},
+          "drape_us": round((drape_s["drape_collide_us"] + drape_s["drape_settle_us"]) * 1e6, 2),
+          "drape_collided": drape.collided, "drape_settled": drape.settled})
 
 
 if __name__ == "__main__":

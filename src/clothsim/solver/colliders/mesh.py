@@ -303,18 +303,21 @@ def _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin):
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _by_hint(tris, prisms, t, x0, y0, z0, x1, y1, z1, G, closed, margin, keep, friction):
-    """What the kernel does with the segment q0 -> q1 (rest frame, finite), decided by
+def _by_hint(tris, prisms, t, seg, G, closed, placing):
+    """What the kernel does with the segment ``seg`` q0 -> q1 (x0, y0, z0, x1, y1, z1;
+    rest frame, finite), decided by
     the clear prism of triangle t (:mod:`.meshprism`) where it can be, without a
-    search: (route, x, y, z), for a placement by the friction rule with ``keep``
-    (1 - friction) where ``friction`` (the collider pass; the settle pass puts a
-    point on the surface): route 1 for nothing (it meets no triangle and, for a
+    search: (route, x, y, z), for a placement ``placing`` (margin [m], keep, friction):
+    by the friction rule with keep (1 - friction) where friction is True (the
+    collider pass; the settle pass puts a point on the surface); route 1 for nothing (it meets no triangle and, for a
     closed mesh, ends outside), 2 for q1 placed at (x, y, z) (it crosses t first, and
     the placement, friction and all, ends in t's clear prism on q0's side, so it
     crosses nothing and ends outside), 0 where the prism cannot tell (an end
     outside it, a placement on t within rounding). Where it tells, the
     answer is the search's: the same crossing test on t, and no other triangle
     that the search could find first."""
+    x0, y0, z0, x1, y1, z1 = seg
+    margin, keep, friction = placing
     tiny = G[13]
     if not (in_prism(prisms, t, x0, y0, z0) and in_prism(prisms, t, x1, y1, z1)):
         return 0, x1, y1, z1
@@ -534,6 +537,72 @@ def _pose(meshes, grid, s, k):
     return m
 
 
+@njit(**EXACT_OPTIONS, inline="always")
+def _clamped_cell(v, origin, inv_h, n):
+    """:func:`.meshgrid.cell_coord` without branches (selects), for the vector pass:
+    the cell number along one axis clamped to 0..n-1, 0 for NaN."""
+    f = (v - origin) * inv_h
+    f = f if f > 0.0 else 0.0
+    f = f if f < n - 1.0 else n - 1.0
+    return int(f)
+
+
+@njit(**EXACT_OPTIONS)
+def _look(P, L, free, lo, frames, G, limits, items, need):
+    """The kernels' vector pass over points ``lo:lo + len(need)`` for one mesh in the
+    poses ``frames`` (before, now; :func:`_frame`): ``need`` set for the points that the
+    per-point loop must look at, and their count. The rest are pinned, not finite,
+    with a segment whose box misses the mesh's box grown by the reach, or
+    (:func:`_clear`) with a segment shorter than ``short`` on every axis that ends in a
+    cell without NEAR (and, for a closed mesh, whose centre is not inside);
+    ``limits`` is (reach, short [m], closed). The loop's own first tests, made here
+    without branches for every point at once, so that the points far from the
+    surface, most of a cloth, cost no mispredicted branch."""
+    before, now = frames
+    reach, short, closed = limits
+    ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, _, s0f, _ = G
+    inx, iny, s0 = int(nx), int(ny), int(s0f)
+    n = need.shape[0]
+    # views from lo, indexed from 0 by the loop: numba then knows no index is negative
+    # and emits plain vector loads, not a wrap-around select per access
+    lx, ly, lz = L[0, lo:lo + n], L[1, lo:lo + n], L[2, lo:lo + n]
+    px, py, pz = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
+    fr = free[lo:lo + n]
+    cell = np.empty(n, dtype=np.int64)
+    for q in range(n):  # vectorised: no gather in it
+        x0, y0, z0 = _to_rest(before, lx[q], ly[q], lz[q])
+        x1, y1, z1 = _to_rest(now, px[q], py[q], pz[q])
+        finite = (np.isfinite(x0) & np.isfinite(y0) & np.isfinite(z0) & np.isfinite(x1) & np.isfinite(y1)
+                  & np.isfinite(z1))
+        meets = ((_larger(x0, x1) + reach >= ox) & (_smaller(x0, x1) - reach <= hx)
+                 & (_larger(y0, y1) + reach >= oy) & (_smaller(y0, y1) - reach <= hy)
+                 & (_larger(z0, z1) + reach >= oz) & (_smaller(z0, z1) - reach <= hz))
+        ix, iy, iz = _clamped_cell(x1, ox, inv, nx), _clamped_cell(y1, oy, inv, ny), _clamped_cell(z1, oz, inv, nz)
+        short_move = (abs(x1 - x0) < short) & (abs(y1 - y0) < short) & (abs(z1 - z0) < short)
+        need[q] = (fr[q] != 0.0) & finite & meets
+        cell[q] = (iz * iny + iy) * inx + ix if short_move else -1
+    count = 0
+    for q in range(n):  # the cells' status entries, read for the points still in question
+        if need[q] and cell[q] >= 0:
+            st = items[s0 + cell[q]]
+            need[q] = not ((st & NEAR) == 0 and not (closed and (st & INSIDE_BITS) != 0))
+        count += np.int64(need[q])
+    return count
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _larger(a, b):
+    """a or b, the larger (b for NaN): a select, where the builtin max keeps Python's
+    rule for NaN and vectorises worse"""
+    return a if a > b else b
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _smaller(a, b):
+    """a or b, the smaller (b for NaN)"""
+    return a if a < b else b
+
+
 @njit(**EXACT_OPTIONS)
 def collide_meshes(P, L, free, control, lo, hi, s):
     """Points ``lo:hi`` of the (3, N) positions ``P`` [m] whose path since their last
@@ -559,6 +628,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         return
     lo = max(lo, 0)
     hi = min(hi, P.shape[1], L.shape[1], free.shape[0])
+    need = np.empty(max(hi - lo, 0), dtype=np.bool_)
     for k in range(min(meshes.shape[1], grid.shape[0])):
         m = _pose(meshes, grid, s, k)
         if m.shape[0] == 0:
@@ -573,8 +643,10 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         short = g[G_H] - 2.0 * reach
         first, last = _tri_range(g, tris, prisms)
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0  # the points below keep hints
+        if _look(P, L, free, lo, (before, now), G, (reach, short, closed), items, need) == 0:
+            continue
         for p in range(lo, hi):
-            if free[p] == 0.0:
+            if not need[p - lo]:
                 continue
             x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
             x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
@@ -582,7 +654,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
                 continue
             hint = hints[k, p] if p < hinted else -1
             if hint >= first and hint < last:
-                route, x, y, z = _by_hint(tris, prisms, hint, x0, y0, z0, x1, y1, z1, G, closed, margin, keep, True)
+                route, x, y, z = _by_hint(tris, prisms, hint, (x0, y0, z0, x1, y1, z1), G, closed, (margin, keep, True))
                 if route == 2:
                     wx, wy, wz = _to_world(now, x, y, z)
                     P[0, p], P[1, p], P[2, p] = wx, wy, wz
@@ -667,7 +739,8 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
             hint = hints[k, p] if p < hinted else -1
             if hint >= first and hint < last:
                 # no friction: the placement is the surface point, as below
-                route, x, y, z = _by_hint(tris, prisms, hint, x0, y0, z0, x1, y1, z1, G, closed, margin, 1.0, False)
+                route, x, y, z = _by_hint(tris, prisms, hint, (x0, y0, z0, x1, y1, z1), G, closed,
+                                          (margin, 1.0, False))
                 if route == 2:
                     wx, wy, wz = _to_world(now, x, y, z)
                     P[0, p], P[1, p], P[2, p] = wx, wy, wz
