@@ -315,52 +315,113 @@ def _by_hint(tris, prisms, t, seg, G, closed, placing):
     crosses nothing and ends outside), 0 where the prism cannot tell (an end
     outside it, a placement on t within rounding). Where it tells, the
     answer is the search's: the same crossing test on t, and no other triangle
-    that the search could find first."""
+    that the search could find first. Every test is made and the outcome
+    selected, without a branch (see :func:`_hint_pass`)."""
     x0, y0, z0, x1, y1, z1 = seg
     margin, keep, friction = placing
     tiny = G[13]
-    if not (in_prism(prisms, t, x0, y0, z0) and in_prism(prisms, t, x1, y1, z1)):
-        return 0, x1, y1, z1
+    inside = in_prism(prisms, t, x0, y0, z0) & in_prism(prisms, t, x1, y1, z1)
     up, down = prisms[t, P_UP], prisms[t, P_DOWN]
     nx, ny, nz, w = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET]
     h0 = nx * x0 + ny * y0 + nz * z0 - w
     h1 = nx * x1 + ny * y1 + nz * z1 - w
-    if h0 > tiny and h0 <= up and h1 > tiny and h1 <= up:
-        return 1, x1, y1, z1
+    nothing = (h0 > tiny) & (h0 <= up) & (h1 > tiny) & (h1 <= up)
     if closed:
         # only entries count: a start on the plane (within the slack) is the search's to judge
         side, room = 1.0, up
-        if not (h0 >= -tiny and h0 <= up):
-            return 0, x1, y1, z1
+        start = (h0 >= -tiny) & (h0 <= up)
     else:
-        side, room = (1.0, up) if h0 > tiny else (-1.0, down)
-        if not (side * h0 > tiny and side * h0 <= room):
-            return 0, x1, y1, z1
-        if side * h1 > tiny and side * h1 <= room:
-            return 1, x1, y1, z1
+        above = h0 > tiny
+        side, room = (1.0 if above else -1.0), (up if above else down)
+        start = (side * h0 > tiny) & (side * h0 <= room)
+        nothing = nothing | (start & (side * h1 > tiny) & (side * h1 <= room))
     dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
     slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
-    if not _hit(tris, t, x0, y0, z0, dx, dy, dz, BARY_TOL, closed, slack)[0] <= 1.0:
-        return 0, x1, y1, z1
+    crosses = _hit_s(tris, t, (x0, y0, z0, dx, dy, dz), closed, slack) <= 1.0
     x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
     if friction:  # as the kernels place a point, to the bit
         x, y, z = x0 + keep * (x - x0), y0 + keep * (y - y0), z0 + keep * (z - z0)
     hc = side * (nx * x + ny * y + nz * z - w)
-    if not hc <= room:
-        return 0, x1, y1, z1
-    if hc > tiny:
-        return 2, x, y, z
     # a placement nearer t's plane than the slack (a point resting on the surface
     # stays as near as it was): the search after it could find t again, and would
     # then leave the point at q0; it finds no other triangle, and a point this far
     # out, beyond the rounding of its height, the inside test finds outside
-    if not hc > 1e-13 * (abs(x) + abs(y) + abs(z)):
-        return 0, x1, y1, z1
     ex, ey, ez = x - x0, y - y0, z - z0
     slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(ex) + abs(ey) + abs(ez))
-    if _hit(tris, t, x0, y0, z0, ex, ey, ez, BARY_TOL, closed, slack)[0] <= 1.0:
-        return 0, x1, y1, z1
-    return 2, x, y, z
+    again = _hit_s(tris, t, (x0, y0, z0, ex, ey, ez), closed, slack) <= 1.0
+    clear = (hc > tiny) | ((hc > 1e-13 * (abs(x) + abs(y) + abs(z))) & (again ^ True))
+    placed = inside & (nothing ^ True) & start & crosses & (hc <= room) & clear
+    route = 1 if inside & nothing else (2 if placed else 0)
+    return route, x, y, z
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _hit_s(tris, t, seg, entry_only, slack):
+    """The segment parameter of :func:`_hit` alone (inf for none) for ``seg`` (x0, y0,
+    z0, dx, dy, dz), without its early returns: the same sums, all made, and
+    selects, so that a loop of them has no branch to mispredict."""
+    x0, y0, z0, dx, dy, dz = seg
+    pnx, pny, pnz = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2]
+    h0 = pnx * x0 + pny * y0 + pnz * z0 - tris[t, T_OFFSET]
+    h1 = h0 + (pnx * dx + pny * dy + pnz * dz)
+    if entry_only:
+        ok = ((h0 < -slack) | (h1 > slack)) ^ True
+    else:
+        ok = (((h0 > slack) & (h1 > slack)) | ((h0 < -slack) & (h1 < -slack))) ^ True
+    ax, ay, az = tris[t, 0], tris[t, 1], tris[t, 2]
+    e1x, e1y, e1z = tris[t, 3] - ax, tris[t, 4] - ay, tris[t, 5] - az
+    e2x, e2y, e2z = tris[t, 6] - ax, tris[t, 7] - ay, tris[t, 8] - az
+    px = dy * e2z - dz * e2y
+    py = dz * e2x - dx * e2z
+    pz = dx * e2y - dy * e2x
+    det = e1x * px + e1y * py + e1z * pz
+    ok = ok & ((det > 0.0) if entry_only else (abs(det) > 0.0))
+    inv = 1.0 / (det if ok else 1.0)
+    tx, ty, tz = x0 - ax, y0 - ay, z0 - az
+    u = (tx * px + ty * py + tz * pz) * inv
+    qx = ty * e1z - tz * e1y
+    qy = tz * e1x - tx * e1z
+    qz = tx * e1y - ty * e1x
+    v = (dx * qx + dy * qy + dz * qz) * inv
+    s = (e2x * qx + e2y * qy + e2z * qz) * inv
+    ok = (ok & (u >= -BARY_TOL) & (u <= 1.0 + BARY_TOL) & (v >= -BARY_TOL) & (u + v <= 1.0 + BARY_TOL)
+          & (s >= 0.0) & (s <= 1.0))
+    return s if ok else np.inf
+
+
+@njit(**EXACT_OPTIONS)
+def _hint_pass(P, L, mesh, frames, G, placing, lo, need):
+    """The points of ``need`` (from ``lo``) that have a hint, all decided by it at once
+    (:func:`_by_hint`, in a loop without branches, so that one point's loads need not
+    wait for the last one's outcome): a placed one written to ``P``, and ``need``
+    cleared for every point it decided. ``mesh``: (tris, prisms, hints, k, first,
+    last, hinted, closed), the mesh's arrays, number, rows of ``mesh_tris`` (see
+    :func:`_tri_range`), the points that keep hints (below ``hinted``) and the closed
+    flag; ``frames`` (before, now); ``placing`` as for :func:`_by_hint`."""
+    tris, prisms, hints, k, first, last, hinted, closed = mesh
+    before, now = frames
+    n = min(need.shape[0], max(hinted - lo, 0))
+    if first >= last or n <= 0:
+        return
+    which = np.empty(n, dtype=np.int64)
+    m = 0
+    for q in range(n):
+        h = hints[k, lo + q]
+        which[m] = q
+        m += np.int64(need[q] & (h >= first) & (h < last))
+    for j in range(m):
+        q = which[j]
+        p = lo + q
+        t = hints[k, p]
+        x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
+        x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
+        route, x, y, z = _by_hint(tris, prisms, t, (x0, y0, z0, x1, y1, z1), G, closed, placing)
+        wx, wy, wz = _to_world(now, x, y, z)
+        placed = route == 2
+        P[0, p] = wx if placed else P[0, p]
+        P[1, p] = wy if placed else P[1, p]
+        P[2, p] = wz if placed else P[2, p]
+        need[q] = route == 0
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -554,12 +615,13 @@ def _look(P, L, free, lo, frames, G, limits, items, need):
     per-point loop must look at, and their count. The rest are pinned, not finite,
     with a segment whose box misses the mesh's box grown by the reach, or
     (:func:`_clear`) with a segment shorter than ``short`` on every axis that ends in a
-    cell without NEAR (and, for a closed mesh, whose centre is not inside);
-    ``limits`` is (reach, short [m], closed). The loop's own first tests, made here
-    without branches for every point at once, so that the points far from the
-    surface, most of a cloth, cost no mispredicted branch."""
+    cell without NEAR (and, for a closed mesh, whose centre is not inside), or, where
+    ``moved``, that are where they were (``L`` is then the positions before a later
+    pass); ``limits`` is (reach, short [m], closed, moved). The loop's own first
+    tests, made here without branches for every point at once, so that the points
+    far from the surface, most of a cloth, cost no mispredicted branch."""
     before, now = frames
-    reach, short, closed = limits
+    reach, short, closed, moved = limits
     ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, _, s0f, _ = G
     inx, iny, s0 = int(nx), int(ny), int(s0f)
     n = need.shape[0]
@@ -579,7 +641,8 @@ def _look(P, L, free, lo, frames, G, limits, items, need):
                  & (_larger(z0, z1) + reach >= oz) & (_smaller(z0, z1) - reach <= hz))
         ix, iy, iz = _clamped_cell(x1, ox, inv, nx), _clamped_cell(y1, oy, inv, ny), _clamped_cell(z1, oz, inv, nz)
         short_move = (abs(x1 - x0) < short) & (abs(y1 - y0) < short) & (abs(z1 - z0) < short)
-        need[q] = (fr[q] != 0.0) & finite & meets
+        need[q] = ((fr[q] != 0.0) & finite & meets
+                   & ((not moved) | (lx[q] != px[q]) | (ly[q] != py[q]) | (lz[q] != pz[q])))
         cell[q] = (iz * iny + iy) * inx + ix if short_move else -1
     count = 0
     for q in range(n):  # the cells' status entries, read for the points still in question
@@ -643,8 +706,10 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         short = g[G_H] - 2.0 * reach
         first, last = _tri_range(g, tris, prisms)
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0  # the points below keep hints
-        if _look(P, L, free, lo, (before, now), G, (reach, short, closed), items, need) == 0:
+        if _look(P, L, free, lo, (before, now), G, (reach, short, closed, False), items, need) == 0:
             continue
+        _hint_pass(P, L, (tris, prisms, hints, k, first, last, hinted, closed), (before, now), G,
+                   (margin, keep, True), lo, need)
         for p in range(lo, hi):
             if not need[p - lo]:
                 continue
@@ -652,14 +717,6 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
             x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
                 continue
-            hint = hints[k, p] if p < hinted else -1
-            if hint >= first and hint < last:
-                route, x, y, z = _by_hint(tris, prisms, hint, (x0, y0, z0, x1, y1, z1), G, closed, (margin, keep, True))
-                if route == 2:
-                    wx, wy, wz = _to_world(now, x, y, z)
-                    P[0, p], P[1, p], P[2, p] = wx, wy, wz
-                if route != 0:
-                    continue
             if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, closed)
                     or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed)):
                 continue
@@ -703,7 +760,8 @@ def settle_meshes(P, Q, free, control, lo, hi, s):
 def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
     """The body of :func:`settle_meshes`, with ``control.meshes`` as ``meshes``, so that
     numba prunes it when that is None. A point the later pass did not move (most of
-    them) is skipped before any transform."""
+    them) is skipped by the vector pass, and the hinted ones are settled in a pass
+    of their own, as in :func:`_collide_meshes`."""
     if meshes is None:
         return
     tris, grid, cells, items = control.mesh_tris, control.mesh_grid, control.mesh_cells, control.mesh_items
@@ -712,6 +770,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         return
     lo = max(lo, 0)
     hi = min(hi, P.shape[1], Q.shape[1], free.shape[0])
+    need = np.empty(max(hi - lo, 0), dtype=np.bool_)
     for k in range(min(meshes.shape[1], grid.shape[0])):
         m = _pose(meshes, grid, s, k)
         if m.shape[0] == 0:
@@ -725,27 +784,21 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         short = g[G_H] - 2.0 * reach
         first, last = _tri_range(g, tris, prisms)
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0
+        # the cells' quiet test as the loop below makes it, for an open mesh
+        if _look(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, need) == 0:
+            continue
+        # no friction: the placement is the surface point, as below
+        _hint_pass(P, Q, (tris, prisms, hints, k, first, last, hinted, closed), (now, now), G,
+                   (margin, 1.0, False), lo, need)
         for p in range(lo, hi):
-            if free[p] == 0.0:
+            if not need[p - lo]:
                 continue
             px, py, pz = P[0, p], P[1, p], P[2, p]
             qx, qy, qz = Q[0, p], Q[1, p], Q[2, p]
-            if px == qx and py == qy and pz == qz:
-                continue
             x0, y0, z0 = _to_rest(now, qx, qy, qz)
             x1, y1, z1 = _to_rest(now, px, py, pz)
             if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
                 continue
-            hint = hints[k, p] if p < hinted else -1
-            if hint >= first and hint < last:
-                # no friction: the placement is the surface point, as below
-                route, x, y, z = _by_hint(tris, prisms, hint, (x0, y0, z0, x1, y1, z1), G, closed,
-                                          (margin, 1.0, False))
-                if route == 2:
-                    wx, wy, wz = _to_world(now, x, y, z)
-                    P[0, p], P[1, p], P[2, p] = wx, wy, wz
-                if route != 0:
-                    continue
             if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, False)
                     or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, False)):
                 continue

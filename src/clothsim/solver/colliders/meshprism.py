@@ -56,10 +56,11 @@ resting point's height over the surface, and it bounds the cells read to build t
 
 @njit(**EXACT_OPTIONS, inline="always")
 def in_prism(prisms, t, x, y, z):
-    """Whether (x, y, z) (rest frame) lies over triangle t within its prism's sides."""
+    """Whether (x, y, z) (rest frame) lies over triangle t within its prism's sides
+    (all three tested: no branch)."""
     r = prisms[t]
-    return (r[0] * x + r[1] * y + r[2] * z >= r[3] and r[4] * x + r[5] * y + r[6] * z >= r[7]
-            and r[8] * x + r[9] * y + r[10] * z >= r[11])
+    return ((r[0] * x + r[1] * y + r[2] * z >= r[3]) & (r[4] * x + r[5] * y + r[6] * z >= r[7])
+            & (r[8] * x + r[9] * y + r[10] * z >= r[11]))
 
 
 # --- building ----------------------------------------------------------------------
