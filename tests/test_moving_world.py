@@ -307,3 +307,19 @@ def test_a_closed_mesh_sphere_drapes_the_cloth_as_the_analytic_sphere_does(tmp_p
     facet = sphere["radius"] - np.sqrt(sphere["radius"] ** 2 - face_radius ** 2)
     depth = sphere["radius"] - np.linalg.norm(mesh.positions - sphere["origin"], axis=1)
     assert depth.max() <= facet, (depth.max(), facet)
+
+
+def test_a_mesh_colliders_pivot_is_its_box_middle_and_follows_new_vertices():
+    """the pivot an animation turns about is the middle of the vertices' box, kept
+    between frames and found again when the vertices are replaced"""
+    from clothsim.world_spec import MeshColliderSpec
+
+    spec = MeshColliderSpec(path="m.obj", file="m.obj", friction=0.0,
+                            vertices=np.array([[0.0, -1.0, 2.0], [2.0, 3.0, 6.0], [1.0, 0.0, 3.0]]),
+                            triangles=np.array([[0, 1, 2]]))
+    np.testing.assert_array_equal(spec.pivot, [1.0, 1.0, 4.0])
+    assert spec.pivot is spec.pivot
+    spec.vertices = spec.vertices + 1.0
+    np.testing.assert_array_equal(spec.pivot, [2.0, 2.0, 5.0])
+    with pytest.raises(ValueError):
+        spec.pivot[0] = 9.0

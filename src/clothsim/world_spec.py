@@ -58,8 +58,15 @@ class MeshColliderSpec:
 
     @property
     def pivot(self) -> np.ndarray:
-        """the middle of the bounding box after the transform [m], (3,): what an animation turns about"""
-        return (self.vertices.min(axis=0) + self.vertices.max(axis=0)) / 2.0
+        """the middle of the bounding box after the transform [m], (3,): what an animation
+        turns about. Kept with the vertices it was found from, as the control of every
+        frame asks for it and a large mesh's box took longer than the frame's substeps."""
+        kept = self.__dict__.get("_pivot")
+        if kept is None or kept[0] is not self.vertices:
+            kept = (self.vertices, (self.vertices.min(axis=0) + self.vertices.max(axis=0)) / 2.0)
+            kept[1].setflags(write=False)
+            self.__dict__["_pivot"] = kept
+        return kept[1]
 
     def to_dict(self) -> dict[str, Any]:
         """The scene keys of this collider; ``path`` as the scene wrote it, so the dict
