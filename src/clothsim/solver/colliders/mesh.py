@@ -316,7 +316,7 @@ def _by_hint(tris, prisms, t, seg, G, closed, placing):
     outside it, a placement on t within rounding). Where it tells, the
     answer is the search's: the same crossing test on t, and no other triangle
     that the search could find first. Every test is made and the outcome
-    selected, without a branch (see :func:`_hint_pass`)."""
+    selected (see :func:`_hint_pass`)."""
     x0, y0, z0, x1, y1, z1 = seg
     margin, keep, friction = placing
     tiny = G[13]
@@ -337,7 +337,7 @@ def _by_hint(tris, prisms, t, seg, G, closed, placing):
         nothing = nothing | (start & (side * h1 > tiny) & (side * h1 <= room))
     dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
     slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
-    crosses = _hit_s(tris, t, (x0, y0, z0, dx, dy, dz), closed, slack) <= 1.0
+    crosses = _hit(tris, t, x0, y0, z0, dx, dy, dz, BARY_TOL, closed, slack)[0] <= 1.0
     x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
     if friction:  # as the kernels place a point, to the bit
         x, y, z = x0 + keep * (x - x0), y0 + keep * (y - y0), z0 + keep * (z - z0)
@@ -348,53 +348,19 @@ def _by_hint(tris, prisms, t, seg, G, closed, placing):
     # out, beyond the rounding of its height, the inside test finds outside
     ex, ey, ez = x - x0, y - y0, z - z0
     slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(ex) + abs(ey) + abs(ez))
-    again = _hit_s(tris, t, (x0, y0, z0, ex, ey, ez), closed, slack) <= 1.0
+    again = _hit(tris, t, x0, y0, z0, ex, ey, ez, BARY_TOL, closed, slack)[0] <= 1.0
     clear = (hc > tiny) | ((hc > 1e-13 * (abs(x) + abs(y) + abs(z))) & (again ^ True))
     placed = inside & (nothing ^ True) & start & crosses & (hc <= room) & clear
     route = 1 if inside & nothing else (2 if placed else 0)
     return route, x, y, z
 
 
-@njit(**EXACT_OPTIONS, inline="always")
-def _hit_s(tris, t, seg, entry_only, slack):
-    """The segment parameter of :func:`_hit` alone (inf for none) for ``seg`` (x0, y0,
-    z0, dx, dy, dz), without its early returns: the same sums, all made, and
-    selects, so that a loop of them has no branch to mispredict."""
-    x0, y0, z0, dx, dy, dz = seg
-    pnx, pny, pnz = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2]
-    h0 = pnx * x0 + pny * y0 + pnz * z0 - tris[t, T_OFFSET]
-    h1 = h0 + (pnx * dx + pny * dy + pnz * dz)
-    if entry_only:
-        ok = ((h0 < -slack) | (h1 > slack)) ^ True
-    else:
-        ok = (((h0 > slack) & (h1 > slack)) | ((h0 < -slack) & (h1 < -slack))) ^ True
-    ax, ay, az = tris[t, 0], tris[t, 1], tris[t, 2]
-    e1x, e1y, e1z = tris[t, 3] - ax, tris[t, 4] - ay, tris[t, 5] - az
-    e2x, e2y, e2z = tris[t, 6] - ax, tris[t, 7] - ay, tris[t, 8] - az
-    px = dy * e2z - dz * e2y
-    py = dz * e2x - dx * e2z
-    pz = dx * e2y - dy * e2x
-    det = e1x * px + e1y * py + e1z * pz
-    ok = ok & ((det > 0.0) if entry_only else (abs(det) > 0.0))
-    inv = 1.0 / (det if ok else 1.0)
-    tx, ty, tz = x0 - ax, y0 - ay, z0 - az
-    u = (tx * px + ty * py + tz * pz) * inv
-    qx = ty * e1z - tz * e1y
-    qy = tz * e1x - tx * e1z
-    qz = tx * e1y - ty * e1x
-    v = (dx * qx + dy * qy + dz * qz) * inv
-    s = (e2x * qx + e2y * qy + e2z * qz) * inv
-    ok = (ok & (u >= -BARY_TOL) & (u <= 1.0 + BARY_TOL) & (v >= -BARY_TOL) & (u + v <= 1.0 + BARY_TOL)
-          & (s >= 0.0) & (s <= 1.0))
-    return s if ok else np.inf
-
-
 @njit(**EXACT_OPTIONS)
 def _hint_pass(P, L, mesh, frames, G, placing, lo, need):
-    """The points of ``need`` (from ``lo``) that have a hint, all decided by it at once
-    (:func:`_by_hint`, in a loop without branches, so that one point's loads need not
-    wait for the last one's outcome): a placed one written to ``P``, and ``need``
-    cleared for every point it decided. ``mesh``: (tris, prisms, hints, k, first,
+    """The points of ``need`` (from ``lo``) that have a hint, all decided by it
+    (:func:`_by_hint`) in a loop of their own, listed first, whose outcome is selected
+    rather than branched on: a placed one written to ``P``, and ``need`` cleared for
+    every point it decided. ``mesh``: (tris, prisms, hints, k, first,
     last, hinted, closed), the mesh's arrays, number, rows of ``mesh_tris`` (see
     :func:`_tri_range`), the points that keep hints (below ``hinted``) and the closed
     flag; ``frames`` (before, now); ``placing`` as for :func:`_by_hint`."""
