@@ -114,6 +114,24 @@ def _edge_planes(tris, t, wide, out):
 
 
 @njit(**EXACT_OPTIONS)
+def _beside(tris, t, u, edges, inset, cap, band):
+    """Whether triangle u surely leaves T's prism free below the cap: all its corners
+    outside one of T's edge planes (half the ``inset`` in), or all more than ``cap`` +
+    ``band`` [m] above or below T's plane; the cheap test before the clip."""
+    pnx, pny, pnz, w = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET]
+    high, low, out0, out1, out2 = 0, 0, 0, 0, 0
+    for k in range(3):
+        x, y, z = tris[u, 3 * k], tris[u, 3 * k + 1], tris[u, 3 * k + 2]
+        h = pnx * x + pny * y + pnz * z - w
+        high += h > cap + band
+        low += h < -cap - band
+        out0 += edges[0] * x + edges[1] * y + edges[2] * z < edges[3] + 0.5 * inset
+        out1 += edges[4] * x + edges[5] * y + edges[6] * z < edges[7] + 0.5 * inset
+        out2 += edges[8] * x + edges[9] * y + edges[10] * z < edges[11] + 0.5 * inset
+    return high == 3 or low == 3 or out0 == 3 or out1 == 3 or out2 == 3
+
+
+@njit(**EXACT_OPTIONS)
 def _clearance(tris, t, u, edges, inset, poly, spare, band):
     """(how far above, how far below) T's plane [m] triangle u leaves T's prism free,
     less ``band``: inf on a side u does not reach, 0 where u reaches within ``band`` of
@@ -178,7 +196,7 @@ def _fill_prisms(tris, g, cells, items, prisms):
                 base = c0 + (iz * iny + iy) * inx
                 for j in range(cells[base + ix0], cells[base + ix1 + 1]):
                     u = items[j]
-                    if u != t:
+                    if u != t and not _beside(tris, t, u, edges, inset, cap, band):
                         a, b = _clearance(tris, t, u, edges, inset, poly, spare, band)
                         up, down = min(up, a), min(down, b)
         for e in range(3):
