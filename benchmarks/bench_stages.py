@@ -10,7 +10,9 @@ points or pairs) and nanoseconds per item.
 
 - ``pinned2`` at 50x50 after 10 frames, one thread: the spring forces, their
   gathering with the Verlet step, the Provot pass, and the Provot pass's check
-  alone (its vector loop over every spring, without the corrections);
+  alone (its vector loop over every spring, without the corrections); then
+  what a call from Python costs with no work to do, which each of these
+  figures includes and the compiled substep does not pay;
 - ``selfCollision`` at ``--size`` (100 by default) after its 2 s fall and
   settle, when the cloth lies piled up, on one thread and cut over numba's
   threads: the springs with Verlet, the Provot pass, self-collision between
@@ -155,6 +157,11 @@ def spring_stages(rounds: int, info: dict) -> None:
         us = best_us(call, copy, 2000, rounds)
         points = stage == "gather and Verlet"
         line(stage, "pinned2", "50x50", 1, us, n if points else slots, "points" if points else "springs", info)
+    # what each figure above spends in the call from Python (unboxing the groups'
+    # arrays), which the compiled substep does not pay: the force call on no points
+    us = best_us(lambda: spring_forces(s.P, knobs.k_over_m, springs, s.F, 0, 0), copy, 2000, rounds)
+    emit({"bench": "stage", "stage": "call from Python, no work", "scene": "pinned2", "grid": "50x50",
+          "threads": 1, "us_per_call": round(us, 2), **info})
 
 
 def piled_stages(size: int, rounds: int, info: dict) -> None:

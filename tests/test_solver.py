@@ -114,6 +114,32 @@ def test_hooke_forces_match_the_spring_list(nw, nh):
                                reference_accelerations(pos, m, k_kind, g), rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.parametrize("nw,nh", [(2, 7), (3, 5), (60, 12), (700, 2)])
+def test_slots_without_a_spring_add_no_force(nw, nh):
+    """the force loop weighs no slot and zeroes the ones that would wrap a row
+    (GridSprings.wrap) after it: on narrow grids, where every slot of a set is
+    one, and across chunks, a buffer full of stale forces from a stretched
+    cloth leaves nothing behind, and the accelerations are the spring list's"""
+    m = grid_model(nw, nh)
+    st = stencil(m)
+    for s in range(6):
+        p = np.arange(st.count[s])
+        columns = st.wrap[s][st.wrap[s] >= 0]
+        np.testing.assert_array_equal(st.valid[s, p] == 0, np.isin(p % nw, columns))
+    rng = np.random.default_rng(3)
+    pos = m.rest_positions + rng.normal(0.0, 0.2, size=m.rest_positions.shape)
+    k_kind = np.array([10.0, 7.0, 2.0])
+    g = np.array([0.0, -9.8, 0.0])
+    F = force_buffer(st, m.num_points)
+    pad = F.shape[2] - m.num_points
+    for s in range(6):
+        F[s, :, pad:pad + st.count[s]] = 1e9  # the slots the loop writes; the rest stay zero
+    P, L = planes(pos), planes(pos)
+    run_integrate(P, L, np.ones(m.num_points), knobs(k_kind[SET_KIND], g, 0.7, 1.0), st, F)
+    np.testing.assert_allclose((P - planes(pos)).T, reference_accelerations(pos, m, k_kind, g),
+                               rtol=1e-9, atol=1e-9)
+
+
 def test_disabled_kind_adds_no_force():
     """k of 0 for a set means no force from it, however stretched, even after a step
     in which it was on (its buffered forces are not reused)"""

@@ -5,8 +5,9 @@ two grid points. Holding x, y and z as separate planes of ``rows*cols``
 values, point p of a spring set is joined to point ``p + offset``, and each
 set is one long loop over contiguous memory, which LLVM turns into SIMD code;
 a loop over a spring list with indexed ends does not vectorise. Where the
-offset would wrap past the end of a grid row, the spring does not exist and
-its ``valid`` weight is 0.
+offset would wrap past the end of a grid row, the spring does not exist: its
+``valid`` weight is 0, and the force loop, which reads no weight, zeroes those
+few slots (whole grid columns, :attr:`GridSprings.wrap`) after each set.
 
 The six sets, indexed by ``s``, join grid point ``(r, i)`` to ``(r + dr, i + di)``:
 
@@ -57,7 +58,8 @@ class GridSprings(NamedTuple):
     count: np.ndarray
     """p runs over ``range(count[s])``, int64 (6,)"""
     valid: np.ndarray
-    """1.0 where spring p of set s exists, 0.0 where it would wrap a row, (6, N)"""
+    """1.0 where spring p of set s exists, 0.0 where it would wrap a row, (6, N);
+    the wind's stencils weigh by it, the force loop uses ``wrap`` instead"""
     rest: np.ndarray
     """rest lengths [m], 0 where no spring, (6, N)"""
     limit: np.ndarray
@@ -68,6 +70,13 @@ class GridSprings(NamedTuple):
     share: np.ndarray
     """fraction of a Provot correction that goes to each end, (6, 2, N): half
     each, all to the free end when the other is pinned, none when both are"""
+    wrap: np.ndarray
+    """the grid columns where set s's springs would wrap a row, int64 (6, 2), -1
+    for none: spring p with ``p % cols`` among them is the one ``valid`` weighs 0.
+    The force loop computes every slot with no weight (one load and one multiply
+    fewer a spring) and then zeroes these few, at most two a row"""
+    cols: int
+    """points in a grid row"""
     ahead: int
     """points past the end of a part that its last springs reach, rounded up to
     a CHUNK: a thread moves them only once every part has its forces"""
@@ -104,11 +113,27 @@ def build_stencil(rest_positions: np.ndarray, pinned: np.ndarray, rows: int, col
         # every other spring of a row (pairs of them for bending), or every other row
         batch[s, p] = ((i[p] if dr == 0 else r[p]) // step) % 2
         limit[s, p[ok]] = MAX_STRETCH * rest[s, p[ok]]
-    for arr in (start, end, count, valid, rest, limit, batch, share):
+    wrap = wrap_columns(valid, count, cols)
+    for arr in (start, end, count, valid, rest, limit, batch, share, wrap):
         arr.setflags(write=False)
     ahead = int((end.max() + CHUNK - 1) // CHUNK * CHUNK)
     return GridSprings(start=start, end=end, count=count, valid=valid, rest=rest, limit=limit, batch=batch,
-                       share=share, ahead=ahead)
+                       share=share, wrap=wrap, cols=int(cols), ahead=ahead)
+
+
+def wrap_columns(valid: np.ndarray, count: np.ndarray, cols: int) -> np.ndarray:
+    """The columns (of a spring's index p, ``p % cols``) where each set has no spring,
+    int64 (6, 2), -1 padded: the ends of a row that a set's step would wrap past.
+    Every slot p < count[s] that ``valid`` (6, N) weighs 0 lies in one of them."""
+    wrap = np.full((6, 2), -1, dtype=np.int64)
+    for s in range(6):
+        slots = np.arange(count[s])
+        missing = valid[s, :count[s]] == 0
+        columns = np.unique(slots[missing] % cols)
+        if len(columns) > 2 or not np.array_equal(missing, np.isin(slots % cols, columns)):
+            raise ValueError(f"spring set {s}: the slots with no spring are not whole grid columns")
+        wrap[s, :len(columns)] = columns
+    return wrap
 
 
 
@@ -182,7 +207,8 @@ def has_springs(k_over_m):
 @njit(**KERNEL_OPTIONS)
 def spring_forces(P, k_over_m, springs, F, lo, hi):
     """The forces of the springs that start at points ``lo:hi``, into ``F``; see :func:`integrate`."""
-    start, end, count, valid, rest = springs.start, springs.end, springs.count, springs.valid, springs.rest
+    start, end, count, rest = springs.start, springs.end, springs.count, springs.rest
+    wrap, cols = springs.wrap, springs.cols
     pad = F.shape[2] - P.shape[1]
     x, y, z = P[0], P[1], P[2]
     for s in range(6):
@@ -200,15 +226,31 @@ def spring_forces(P, k_over_m, springs, F, lo, hi):
         # negative-index wraparound, which would block vectorisation
         xa, ya, za = x[oa:], y[oa:], z[oa:]
         xb, yb, zb = x[ob:], y[ob:], z[ob:]
-        w, rl = valid[s, lo:], rest[s, lo:]
+        rl = rest[s, lo:]
         for p in range(m):
             dx = xb[p] - xa[p]
             dy = yb[p] - ya[p]
             dz = zb[p] - za[p]
-            f = k * w[p] * (1.0 - rl[p] * inv_length(dx * dx + dy * dy + dz * dz))
+            f = k - k * rl[p] * inv_length(dx * dx + dy * dy + dz * dz)
             fx[p] = f * dx
             fy[p] = f * dy
             fz[p] = f * dz
+        zero_wrapped(fx, fy, fz, wrap[s], cols, lo, m)
+
+
+@njit(cache=True, inline="always")
+def zero_wrapped(fx, fy, fz, wrap, cols, lo, m):
+    """Zero the forces of the slots ``lo:lo+m`` (at index ``p - lo``) that lie in a
+    wrap column (see :attr:`GridSprings.wrap`): the slots with no spring, one
+    every ``cols`` slots for each such column."""
+    for j in range(wrap.shape[0]):
+        c = wrap[j]
+        if c < 0:
+            continue
+        for p in range((c - lo) % cols, m, cols):
+            fx[p] = 0.0
+            fy[p] = 0.0
+            fz[p] = 0.0
 
 
 @njit(**KERNEL_OPTIONS)
