@@ -163,3 +163,32 @@ def test_no_point_ends_below_the_plane_at_one_substep(path, overrides):
     lowest = [np.inf]
     sim.run(1.5, lambda sim: lowest.__setitem__(0, min(lowest[0], sim.positions[:, 1].min())))
     assert lowest[0] >= 0.0
+
+
+def test_the_moving_loop_takes_the_still_rule_across_its_blocks():
+    """the moving sphere's loop works out its carried last positions a block of
+    CARRY_BLOCK points at a time: with the identity carry, over several blocks
+    and from a part that starts inside one, it puts every point where the still
+    sphere's loop does, and leaves the points outside the part alone"""
+    from clothsim.solver.colliders.sphere import CARRY_BLOCK
+
+    rng = np.random.default_rng(11)
+    c, r, friction = np.array([0.5, 0.2, 0.5]), 0.2, 0.3
+    n = 3 * CARRY_BLOCK + 17
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    last = c + normal * (r + rng.uniform(-2e-4, 2e-3, (n, 1)))
+    now = last + rng.normal(scale=2e-3, size=(n, 3)) - normal * 3e-3
+    now[::41] += 0.3  # some points moved too far for the loop: its second pass takes them
+    free = np.ones(n)
+    free[::7] = 0.0
+    lo, hi = CARRY_BLOCK // 2 + 1, n - 5
+    out = {}
+    for moving in (False, True):
+        P, L = planes(now), planes(last)
+        collide_spheres(P, L, free, sphere_rows(c, r, friction, moving), lo, hi, 0)
+        out[moving] = P
+    np.testing.assert_allclose(out[True], out[False], rtol=0, atol=1e-15)
+    moved = np.any(out[True] != planes(now), axis=0)
+    assert moved[lo:hi].sum() > (hi - lo) // 3
+    assert not moved[:lo].any() and not moved[hi:].any()

@@ -37,6 +37,10 @@ def pack(spheres: Sequence, t0: float = 0.0, dt: float = 0.0, substeps: int = 1)
 SPHERE_OFFSET = 1e-4
 """distance outside the sphere at which a point that went through it is put [m]"""
 
+CARRY_BLOCK = 256
+"""points whose carried last positions a moving sphere's loop works out at a
+time, into a scratch that stays in L1"""
+
 SPHERE_SETTLE = 1e-3
 """depth [m] beyond which a point that a later pass (Provot's) pulled into a
 sphere is put back on its surface: the standard still-sphere scenes at their
@@ -107,28 +111,55 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
             if fast:
                 _far(x, y, z, lx, ly, lz, free, row, False)
             continue
-        a = carry_of(row, 5)
-        for p in range(x.shape[0]):
-            dx = x[p] - cx
-            dy = y[p] - cy
-            dz = z[p] - cz
+        fast = _carried_rule(x, y, z, lx, ly, lz, free, row, far2)
+        if fast:
+            _far(x, y, z, lx, ly, lz, free, row, True)
+
+
+@njit(**KERNEL_OPTIONS)
+def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
+    """The loop of :func:`collide_spheres` for a moving sphere ``row``, its last
+    positions carried by the sphere's motion; returns how many points moved
+    farther than ``far2`` allows. A function of its own, so that the still
+    loop's code stays as it was."""
+    cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
+    r2 = r * r
+    keep = 1.0 - fr
+    fast = 0
+    # the carried last positions of a block first, then the still loop's
+    # rule on them: in one loop the twelve carry numbers, with the centre,
+    # radius and friction, outnumber AVX2's sixteen vector registers and
+    # were reloaded from the stack every four points (docs/performance.md)
+    a = carry_of(row, 5)
+    carried = np.empty((3, CARRY_BLOCK))
+    mxs, mys, mzs = carried[0], carried[1], carried[2]
+    n = x.shape[0]
+    for q in range(0, n, CARRY_BLOCK):
+        m = min(CARRY_BLOCK, n - q)
+        lxq, lyq, lzq = lx[q:], ly[q:], lz[q:]
+        for p in range(m):
+            mxs[p], mys[p], mzs[p] = carry_point(a, lxq[p], lyq[p], lzq[p])
+        xq, yq, zq, fq = x[q:], y[q:], z[q:], free[q:]
+        for p in range(m):
+            dx = xq[p] - cx
+            dy = yq[p] - cy
+            dz = zq[p] - cz
             d2 = dx * dx + dy * dy + dz * dz
-            mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
-            ux = x[p] - mx
-            uy = y[p] - my
-            uz = z[p] - mz
+            mx, my, mz = mxs[p], mys[p], mzs[p]
+            ux = xq[p] - mx
+            uy = yq[p] - my
+            uz = zq[p] - mz
             far = ux * ux + uy * uy + uz * uz > far2
             fast += far
-            hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0 and not far
+            hit = d2 < r2 and d2 > 0.0 and fq[p] != 0.0 and not far
             f = r / np.sqrt(d2 if hit else 1.0)
             nx = mx + keep * (cx + dx * f - mx)
             ny = my + keep * (cy + dy * f - my)
             nz = mz + keep * (cz + dz * f - mz)
-            x[p] = nx if hit else x[p]
-            y[p] = ny if hit else y[p]
-            z[p] = nz if hit else z[p]
-        if fast:
-            _far(x, y, z, lx, ly, lz, free, row, True)
+            xq[p] = nx if hit else xq[p]
+            yq[p] = ny if hit else yq[p]
+            zq[p] = nz if hit else zq[p]
+    return fast
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
