@@ -35,6 +35,14 @@ CELLS_PER_POINT = 8
 """most grid cells per point; a cloth spread wider gets coarser cells"""
 
 
+@njit(**EXACT_OPTIONS, inline="always")
+def _cell(v):
+    """the whole part of ``v`` (>= 0 and below a grid's count of cells along an axis,
+    far under 2**31): converted through int32, which AVX2 does four at a time (it
+    has no packed conversion to int64, so the loop would convert one by one)"""
+    return np.int64(np.int32(v))
+
+
 @njit(**EXACT_OPTIONS)
 def sort_into_cells(P, radius, span, lists):
     """Counting-sort the points into a dense grid of cells over their bounding box.
@@ -92,9 +100,9 @@ def sort_into_cells(P, radius, span, lists):
     x0, y0, z0 = lo[0], lo[1], lo[2]
     cell_of, row_of, first_x, past_x, rows = search[0], search[1], search[2], search[3], search[4]
     for p in range(n):  # apart from the counting below, which does not vectorise
-        ix = max(min(np.int64((x[p] - x0) * inv_x), nx - 1), 0)
-        iy = max(min(np.int64((y[p] - y0) * inv), ny - 1), 0)
-        iz = max(min(np.int64((z[p] - z0) * inv), nz - 1), 0)
+        ix = max(min(_cell((x[p] - x0) * inv_x), nx - 1), 0)
+        iy = max(min(_cell((y[p] - y0) * inv), ny - 1), 0)
+        iz = max(min(_cell((z[p] - z0) * inv), nz - 1), 0)
         row_of[p] = (iz * ny + iy) * nx
         cell_of[p] = row_of[p] + ix
         # the search sphere's cells: a cell is at least 2 radii wide, so at most
@@ -102,11 +110,11 @@ def sort_into_cells(P, radius, span, lists):
         # each side) and the next one along z; the cells below along z hold
         # only slots before the point's own (see query_points). Clamping at 0
         # before the truncation floors the negative values
-        first_x[p] = np.int64(max((x[p] - radius - x0) * inv_x, 0.0))
-        past_x[p] = min(np.int64((x[p] + radius - x0) * inv_x), nx - 1) + 1
-        up = min(np.int64((y[p] + radius - y0) * inv), ny - 1) > iy
-        down = np.int64(max((y[p] - radius - y0) * inv, 0.0)) < iy
-        far = min(np.int64((z[p] + radius - z0) * inv), nz - 1) > iz
+        first_x[p] = _cell(max((x[p] - radius - x0) * inv_x, 0.0))
+        past_x[p] = min(_cell((x[p] + radius - x0) * inv_x), nx - 1) + 1
+        up = min(_cell((y[p] + radius - y0) * inv), ny - 1) > iy
+        down = _cell(max((y[p] - radius - y0) * inv, 0.0)) < iy
+        far = min(_cell((z[p] + radius - z0) * inv), nz - 1) > iz
         rows[p] = (1 | (2 if up else 0) | (4 if far and down else 0) | (8 if far else 0)
                    | (16 if far and up else 0))
     for p in range(n):
