@@ -54,18 +54,16 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS
-from .meshgrid import (G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_STATUS0, G_TRI0,
-                       INSIDE_BITS, NEAR, T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, plane_slack)
-from .meshprism import P_DOWN, P_UP, in_prism
+from .meshgrid import (BARY_TOL, G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_STATUS0,
+                       G_TRI0, INSIDE_BITS, NEAR, T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, plane_slack)
+from .meshhint import hint_pass
+from .meshpose import frame as _frame
+from .meshpose import to_rest as _to_rest
+from .meshpose import to_world as _to_world
 from .meshslab import clear_side, pack_meshes
 
 POSE_FIELDS = 26
 """a pose row: R_now (9), o_now (3), R_before (9), o_before (3), friction, margin"""
-
-BARY_TOL = 1e-9
-"""slack on a triangle's barycentric bounds, so that a segment through an edge or
-corner shared by two triangles crosses at least one of them"""
-
 
 def pose_rows(R_now, o_now, R_before, o_before, friction, margin) -> np.ndarray:
     """Pose rows (..., POSE_FIELDS) from rotations (..., 3, 3), offsets (..., 3) [m],
@@ -303,94 +301,6 @@ def _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin):
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _by_hint(tris, prisms, t, seg, G, closed, placing):
-    """What the kernel does with the segment ``seg`` q0 -> q1 (x0, y0, z0, x1, y1, z1;
-    rest frame, finite), decided by
-    the clear prism of triangle t (:mod:`.meshprism`) where it can be, without a
-    search: (route, x, y, z), for a placement ``placing`` (margin [m], keep, friction):
-    by the friction rule with keep (1 - friction) where friction is True (the
-    collider pass; the settle pass puts a point on the surface); route 1 for nothing (it meets no triangle and, for a
-    closed mesh, ends outside), 2 for q1 placed at (x, y, z) (it crosses t first, and
-    the placement, friction and all, ends in t's clear prism on q0's side, so it
-    crosses nothing and ends outside), 0 where the prism cannot tell (an end
-    outside it, a placement on t within rounding). Where it tells, the
-    answer is the search's: the same crossing test on t, and no other triangle
-    that the search could find first. Every test is made and the outcome
-    selected (see :func:`_hint_pass`)."""
-    x0, y0, z0, x1, y1, z1 = seg
-    margin, keep, friction = placing
-    tiny = G[13]
-    inside = in_prism(prisms, t, x0, y0, z0) & in_prism(prisms, t, x1, y1, z1)
-    up, down = prisms[t, P_UP], prisms[t, P_DOWN]
-    nx, ny, nz, w = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET]
-    h0 = nx * x0 + ny * y0 + nz * z0 - w
-    h1 = nx * x1 + ny * y1 + nz * z1 - w
-    nothing = (h0 > tiny) & (h0 <= up) & (h1 > tiny) & (h1 <= up)
-    if closed:
-        # only entries count: a start on the plane (within the slack) is the search's to judge
-        side, room = 1.0, up
-        start = (h0 >= -tiny) & (h0 <= up)
-    else:
-        above = h0 > tiny
-        side, room = (1.0 if above else -1.0), (up if above else down)
-        start = (side * h0 > tiny) & (side * h0 <= room)
-        nothing = nothing | (start & (side * h1 > tiny) & (side * h1 <= room))
-    dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
-    slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
-    crosses = _hit(tris, t, x0, y0, z0, dx, dy, dz, BARY_TOL, closed, slack)[0] <= 1.0
-    x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
-    if friction:  # as the kernels place a point, to the bit
-        x, y, z = x0 + keep * (x - x0), y0 + keep * (y - y0), z0 + keep * (z - z0)
-    hc = side * (nx * x + ny * y + nz * z - w)
-    # a placement nearer t's plane than the slack (a point resting on the surface
-    # stays as near as it was): the search after it could find t again, and would
-    # then leave the point at q0; it finds no other triangle, and a point this far
-    # out, beyond the rounding of its height, the inside test finds outside
-    ex, ey, ez = x - x0, y - y0, z - z0
-    slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(ex) + abs(ey) + abs(ez))
-    again = _hit(tris, t, x0, y0, z0, ex, ey, ez, BARY_TOL, closed, slack)[0] <= 1.0
-    clear = (hc > tiny) | ((hc > 1e-13 * (abs(x) + abs(y) + abs(z))) & (again ^ True))
-    placed = inside & (nothing ^ True) & start & crosses & (hc <= room) & clear
-    route = 1 if inside & nothing else (2 if placed else 0)
-    return route, x, y, z
-
-
-@njit(**EXACT_OPTIONS)
-def _hint_pass(P, L, mesh, frames, G, placing, lo, need):
-    """The points of ``need`` (from ``lo``) that have a hint, all decided by it
-    (:func:`_by_hint`) in a loop of their own, listed first, whose outcome is selected
-    rather than branched on: a placed one written to ``P``, and ``need`` cleared for
-    every point it decided. ``mesh``: (tris, prisms, hints, k, first,
-    last, hinted, closed), the mesh's arrays, number, rows of ``mesh_tris`` (see
-    :func:`_tri_range`), the points that keep hints (below ``hinted``) and the closed
-    flag; ``frames`` (before, now); ``placing`` as for :func:`_by_hint`."""
-    tris, prisms, hints, k, first, last, hinted, closed = mesh
-    before, now = frames
-    n = min(need.shape[0], max(hinted - lo, 0))
-    if first >= last or n <= 0:
-        return
-    which = np.empty(n, dtype=np.int64)
-    m = 0
-    for q in range(n):
-        h = hints[k, lo + q]
-        which[m] = q
-        m += np.int64(need[q] & (h >= first) & (h < last))
-    for j in range(m):
-        q = which[j]
-        p = lo + q
-        t = hints[k, p]
-        x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
-        x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
-        route, x, y, z = _by_hint(tris, prisms, t, (x0, y0, z0, x1, y1, z1), G, closed, placing)
-        wx, wy, wz = _to_world(now, x, y, z)
-        placed = route == 2
-        P[0, p] = wx if placed else P[0, p]
-        P[1, p] = wy if placed else P[1, p]
-        P[2, p] = wz if placed else P[2, p]
-        need[q] = route == 0
-
-
-@njit(**EXACT_OPTIONS, inline="always")
 def _inside(tris, cells, items, G, x, y, z):
     """Whether (x, y, z) (rest frame, finite) is inside the closed mesh of grid scalars
     ``G``: its cell's inside flag, which alone decides a cell without triangles,
@@ -506,31 +416,6 @@ def _push_out(tris, g, cells, items, q, margin):
 # --- the kernels -----------------------------------------------------------------
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _frame(m, o):
-    """The rotation (row-major) and offset at m[o:o+12] as one tuple of 12 floats,
-    read once per mesh."""
-    return (m[o], m[o + 1], m[o + 2], m[o + 3], m[o + 4], m[o + 5], m[o + 6], m[o + 7], m[o + 8],
-            m[o + 9], m[o + 10], m[o + 11])
-
-
-@njit(**EXACT_OPTIONS, inline="always")
-def _to_rest(f, x, y, z):
-    """R^T (p - o) for the frame tuple ``f`` of :func:`_frame`."""
-    px, py, pz = x - f[9], y - f[10], z - f[11]
-    return (f[0] * px + f[3] * py + f[6] * pz,
-            f[1] * px + f[4] * py + f[7] * pz,
-            f[2] * px + f[5] * py + f[8] * pz)
-
-
-@njit(**EXACT_OPTIONS, inline="always")
-def _to_world(f, x, y, z):
-    """R q + o for the frame tuple ``f`` of :func:`_frame`."""
-    return (f[0] * x + f[1] * y + f[2] * z + f[9],
-            f[3] * x + f[4] * y + f[5] * z + f[10],
-            f[6] * x + f[7] * y + f[8] * z + f[11])
-
-
-@njit(**EXACT_OPTIONS, inline="always")
 def _finite6(a, b, c, d, e, f):
     return (np.isfinite(a) and np.isfinite(b) and np.isfinite(c) and np.isfinite(d) and np.isfinite(e)
             and np.isfinite(f))
@@ -571,7 +456,7 @@ def _clamped_cell(v, origin, inv_h, n):
     f = (v - origin) * inv_h
     f = f if f > 0.0 else 0.0
     f = f if f < n - 1.0 else n - 1.0
-    return int(f)
+    return np.int32(f)
 
 
 @njit(**EXACT_OPTIONS)
@@ -589,14 +474,14 @@ def _look(P, L, free, lo, frames, G, limits, items, need):
     before, now = frames
     reach, short, closed, moved = limits
     ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, _, s0f, _ = G
-    inx, iny, s0 = int(nx), int(ny), int(s0f)
+    inx, iny, s0 = np.int32(nx), np.int32(ny), int(s0f)
     n = need.shape[0]
     # views from lo, indexed from 0 by the loop: numba then knows no index is negative
     # and emits plain vector loads, not a wrap-around select per access
     lx, ly, lz = L[0, lo:lo + n], L[1, lo:lo + n], L[2, lo:lo + n]
     px, py, pz = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
     fr = free[lo:lo + n]
-    cell = np.empty(n, dtype=np.int64)
+    cell = np.empty(n, dtype=np.int32)
     for q in range(n):  # vectorised: no gather in it
         x0, y0, z0 = _to_rest(before, lx[q], ly[q], lz[q])
         x1, y1, z1 = _to_rest(now, px[q], py[q], pz[q])
@@ -609,7 +494,7 @@ def _look(P, L, free, lo, frames, G, limits, items, need):
         short_move = (abs(x1 - x0) < short) & (abs(y1 - y0) < short) & (abs(z1 - z0) < short)
         need[q] = ((fr[q] != 0.0) & finite & meets
                    & ((not moved) | (lx[q] != px[q]) | (ly[q] != py[q]) | (lz[q] != pz[q])))
-        cell[q] = (iz * iny + iy) * inx + ix if short_move else -1
+        cell[q] = (iz * iny + iy) * inx + ix if short_move else np.int32(-1)
     count = 0
     for q in range(n):  # the cells' status entries, read for the points still in question
         if need[q] and cell[q] >= 0:
@@ -674,7 +559,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0  # the points below keep hints
         if _look(P, L, free, lo, (before, now), G, (reach, short, closed, False), items, need) == 0:
             continue
-        _hint_pass(P, L, (tris, prisms, hints, k, first, last, hinted, closed), (before, now), G,
+        hint_pass(P, L, (tris, prisms, hints, k, first, last, hinted, closed), (before, now), G,
                    (margin, keep, True), lo, need)
         for p in range(lo, hi):
             if not need[p - lo]:
@@ -754,7 +639,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         if _look(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, need) == 0:
             continue
         # no friction: the placement is the surface point, as below
-        _hint_pass(P, Q, (tris, prisms, hints, k, first, last, hinted, closed), (now, now), G,
+        hint_pass(P, Q, (tris, prisms, hints, k, first, last, hinted, closed), (now, now), G,
                    (margin, 1.0, False), lo, need)
         for p in range(lo, hi):
             if not need[p - lo]:

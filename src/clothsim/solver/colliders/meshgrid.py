@@ -93,6 +93,10 @@ PLANE_SLACK = 1e-6
 this many cell sizes (plus rounding of their coordinates) off it on one side; the
 exact test decides the rest"""
 
+BARY_TOL = 1e-9
+"""slack on a triangle's barycentric bounds in the crossing tests, so that a segment
+through an edge or corner shared by two triangles crosses at least one of them"""
+
 
 @njit(**EXACT_OPTIONS, inline="always")
 def plane_slack(g):

@@ -54,15 +54,6 @@ PRISM_CAP = 1.0
 resting point's height over the surface, and it bounds the cells read to build them"""
 
 
-@njit(**EXACT_OPTIONS, inline="always")
-def in_prism(prisms, t, x, y, z):
-    """Whether (x, y, z) (rest frame) lies over triangle t within its prism's sides
-    (all three tested: no branch)."""
-    r = prisms[t]
-    return ((r[0] * x + r[1] * y + r[2] * z >= r[3]) & (r[4] * x + r[5] * y + r[6] * z >= r[7])
-            & (r[8] * x + r[9] * y + r[10] * z >= r[11]))
-
-
 # --- building ----------------------------------------------------------------------
 
 @njit(**EXACT_OPTIONS)

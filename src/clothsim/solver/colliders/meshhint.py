@@ -1,0 +1,212 @@
+"""The hinted points of a mesh pass, decided by their triangles' clear prisms, four at a time.
+
+A cloth resting on a mesh crosses the same triangle at each point in contact,
+substep after substep: :mod:`.mesh` keeps that triangle as the point's hint,
+and the triangle's clear prism (:mod:`.meshprism`) settles the point's
+segment without a search wherever both its ends lie in it. Per point that is
+a few hundred floating-point operations (the turns into the mesh's frame,
+six prism sides, two crossing tests and the placement) on a triangle's rows
+read from wherever the hint points.
+
+In scalar code each such point cost some 60 ns. Here the hinted points go
+in blocks of BLOCK: their positions and their triangles' rows are copied
+into a scratch, one row per quantity (``S_*``), and one loop without
+branches (:func:`_decide`) runs over the block's columns, which LLVM turns
+into vector code (four points at once with AVX2). Every test is made for
+every point and the outcome selected, so the answer is the scalar tests',
+to the bit: the same operations in the same order, without fastmath.
+
+The scratch is one flat array indexed ``row * BLOCK + column`` with BLOCK a
+constant: LLVM then sees every read as one object at fixed offsets, and the
+results go to a second array, so the vector loop needs a single overlap
+test (with a row per quantity as separate arrays it needed more than LLVM
+allows, and stayed scalar).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..shared import EXACT_OPTIONS
+from .meshgrid import BARY_TOL, T_NORMAL, T_OFFSET
+from .meshpose import to_rest, to_world
+from .meshprism import P_DOWN, P_UP
+
+BLOCK = 64
+"""hinted points decided together: the scratch (33 x 64 doubles, 17 KB) stays in L1"""
+
+S_LAST, S_NOW, S_TRI, S_PRISM, S_ROWS = 0, 3, 6, 19, 33
+"""the scratch's rows: a point's last (or reference) position (3) and its position
+now (3), world frame [m]; its triangle's row of ``mesh_tris`` (13); of
+``mesh_prisms`` (14)"""
+
+O_X, O_ROUTE, O_ROWS = 0, 3, 4
+"""the results' rows: where a placed point goes (3, world frame [m]); its route"""
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _at(row, j):
+    """the flat scratch index of ``row``, column j"""
+    return row * BLOCK + j
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _crosses(S, j, seg, entry_only, slack):
+    """Whether the segment ``seg`` (x0, y0, z0, dx, dy, dz; rest frame) crosses the
+    triangle in column j: :func:`.mesh._hit`'s ``s <= 1``, every test made and and-ed
+    rather than returned from, with the same operations in the same order."""
+    x0, y0, z0, dx, dy, dz = seg
+    pnx, pny, pnz = S[_at(S_TRI + T_NORMAL, j)], S[_at(S_TRI + T_NORMAL + 1, j)], S[_at(S_TRI + T_NORMAL + 2, j)]
+    h0 = pnx * x0 + pny * y0 + pnz * z0 - S[_at(S_TRI + T_OFFSET, j)]
+    h1 = h0 + (pnx * dx + pny * dy + pnz * dz)
+    if entry_only:
+        plane = (h0 >= -slack) & (h1 <= slack)
+    else:
+        plane = ((h0 > slack) & (h1 > slack) | (h0 < -slack) & (h1 < -slack)) ^ True
+    ax, ay, az = S[_at(S_TRI, j)], S[_at(S_TRI + 1, j)], S[_at(S_TRI + 2, j)]
+    e1x, e1y, e1z = S[_at(S_TRI + 3, j)] - ax, S[_at(S_TRI + 4, j)] - ay, S[_at(S_TRI + 5, j)] - az
+    e2x, e2y, e2z = S[_at(S_TRI + 6, j)] - ax, S[_at(S_TRI + 7, j)] - ay, S[_at(S_TRI + 8, j)] - az
+    px = dy * e2z - dz * e2y
+    py = dz * e2x - dx * e2z
+    pz = dx * e2y - dy * e2x
+    det = e1x * px + e1y * py + e1z * pz
+    facing = (det > 0.0) if entry_only else (abs(det) > 0.0)
+    inv = 1.0 / det
+    tx, ty, tz = x0 - ax, y0 - ay, z0 - az
+    u = (tx * px + ty * py + tz * pz) * inv
+    qx = ty * e1z - tz * e1y
+    qy = tz * e1x - tx * e1z
+    qz = tx * e1y - ty * e1x
+    v = (dx * qx + dy * qy + dz * qz) * inv
+    s = (e2x * qx + e2y * qy + e2z * qz) * inv
+    return (plane & facing & (u >= -BARY_TOL) & (u <= 1.0 + BARY_TOL) & (v >= -BARY_TOL)
+            & (u + v <= 1.0 + BARY_TOL) & (s >= 0.0) & (s <= 1.0))
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _in_prism(S, j, x, y, z):
+    """whether (x, y, z) (rest frame) lies within the three sides of column j's prism"""
+    inside = True
+    for side in range(3):
+        r = S_PRISM + 4 * side
+        inside = inside & (S[_at(r, j)] * x + S[_at(r + 1, j)] * y + S[_at(r + 2, j)] * z >= S[_at(r + 3, j)])
+    return inside
+
+
+@njit(**EXACT_OPTIONS)
+def _decide(S, O, count, frames, tiny, closed, placing):
+    """The first ``count`` columns of the scratch S decided: O's route row 1 where the
+    segment meets no triangle and, for a closed mesh, ends outside; 2 where it
+    crosses the hinted triangle first and the placement (``placing``: margin [m],
+    keep = 1 - friction, whether the friction rule applies), friction and all,
+    ends in the triangle's clear prism on the side it came from, so that it
+    crosses nothing and ends outside (O's rows O_X.. then hold where it goes,
+    world frame [m]); 0 where the prism cannot tell (an end outside it, a
+    placement on the triangle within rounding), for the search. ``frames``: the
+    mesh's poses (before, now); ``tiny``: the plane slack of its grid [m].
+
+    Where it tells, the answer is the search's: the same crossing test on the
+    triangle, and no other triangle that the search could find first. A
+    placement nearer the plane than the slack (a point resting on the surface
+    stays as near as it was) is taken only where a search after it, from the
+    last position, would not find the triangle again (the search would then
+    leave the point where it was), and where it is beyond the rounding of its
+    height (the inside test finds it outside)."""
+    before, now = frames
+    margin, keep, friction = placing
+    for j in range(count):
+        x0, y0, z0 = to_rest(before, S[_at(S_LAST, j)], S[_at(S_LAST + 1, j)], S[_at(S_LAST + 2, j)])
+        x1, y1, z1 = to_rest(now, S[_at(S_NOW, j)], S[_at(S_NOW + 1, j)], S[_at(S_NOW + 2, j)])
+        inside = _in_prism(S, j, x0, y0, z0) & _in_prism(S, j, x1, y1, z1)
+        up, down = S[_at(S_PRISM + P_UP, j)], S[_at(S_PRISM + P_DOWN, j)]
+        nx, ny, nz = S[_at(S_TRI + T_NORMAL, j)], S[_at(S_TRI + T_NORMAL + 1, j)], S[_at(S_TRI + T_NORMAL + 2, j)]
+        w = S[_at(S_TRI + T_OFFSET, j)]
+        h0 = nx * x0 + ny * y0 + nz * z0 - w
+        h1 = nx * x1 + ny * y1 + nz * z1 - w
+        nothing = (h0 > tiny) & (h0 <= up) & (h1 > tiny) & (h1 <= up)
+        if closed:
+            # only entries count: a start on the plane (within the slack) is the search's to judge
+            side, room = 1.0, up
+            start = (h0 >= -tiny) & (h0 <= up)
+        else:
+            above = h0 > tiny
+            side = 1.0 if above else -1.0
+            room = up if above else down
+            start = (side * h0 > tiny) & (side * h0 <= room)
+            nothing = nothing | (start & (side * h1 > tiny) & (side * h1 <= room))
+        dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+        slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
+        crosses = _crosses(S, j, (x0, y0, z0, dx, dy, dz), closed, slack)
+        # the placement of :func:`.mesh._put_off`, then the friction rule, as the kernels make them
+        toward = 1.0 if dx * nx + dy * ny + dz * nz < 0.0 else -1.0
+        d0 = abs(x0 * nx + y0 * ny + z0 * nz - w)
+        d1 = x1 * nx + y1 * ny + z1 * nz - w
+        off = toward * min(margin, d0) - d1
+        x, y, z = x1 + off * nx, y1 + off * ny, z1 + off * nz
+        if friction:
+            x, y, z = x0 + keep * (x - x0), y0 + keep * (y - y0), z0 + keep * (z - z0)
+        hc = side * (nx * x + ny * y + nz * z - w)
+        ex, ey, ez = x - x0, y - y0, z - z0
+        slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(ex) + abs(ey) + abs(ez))
+        again = _crosses(S, j, (x0, y0, z0, ex, ey, ez), closed, slack)
+        clear = (hc > tiny) | ((hc > 1e-13 * (abs(x) + abs(y) + abs(z))) & (again ^ True))
+        placed = inside & (nothing ^ True) & start & crosses & (hc <= room) & clear
+        wx, wy, wz = to_world(now, x, y, z)
+        O[_at(O_X, j)] = wx
+        O[_at(O_X + 1, j)] = wy
+        O[_at(O_X + 2, j)] = wz
+        O[_at(O_ROUTE, j)] = 1.0 if inside & nothing else (2.0 if placed else 0.0)
+
+
+@njit(**EXACT_OPTIONS)
+def _gather(S, P, L, rows, hints, k, which, lo):
+    """Column j of the scratch S filled for point ``lo + which[j]`` (all of ``which``, at
+    most BLOCK): its positions from L and P (3, N) and its hinted triangle's rows
+    from ``rows`` (tris, prisms)."""
+    tris, prisms = rows
+    for j in range(which.shape[0]):
+        p = lo + which[j]
+        t = hints[k, p]
+        for c in range(3):
+            S[_at(S_LAST + c, j)] = L[c, p]
+            S[_at(S_NOW + c, j)] = P[c, p]
+        for c in range(S_PRISM - S_TRI):
+            S[_at(S_TRI + c, j)] = tris[t, c]
+        for c in range(S_ROWS - S_PRISM):
+            S[_at(S_PRISM + c, j)] = prisms[t, c]
+
+
+@njit(**EXACT_OPTIONS)
+def hint_pass(P, L, mesh, frames, G, placing, lo, need):
+    """The points of ``need`` (from ``lo``) that have a hint, all decided by it
+    (:func:`_decide`) before any search: a placed one written to ``P``, and ``need``
+    cleared for every point it decided. ``mesh``: (tris, prisms, hints, k, first,
+    last, hinted, closed), the mesh's arrays, number, rows of ``mesh_tris`` holding
+    its triangles (a hint outside them is not tried), the points that keep hints
+    (below ``hinted``) and the closed flag; ``frames`` (before, now) as for
+    :func:`_decide`; ``G`` the grid's scalars (its plane slack last)."""
+    tris, prisms, hints, k, first, last, hinted, closed = mesh
+    n = min(need.shape[0], max(hinted - lo, 0))
+    if first >= last or n <= 0:
+        return
+    which = np.empty(n, dtype=np.int64)
+    m = 0
+    for q in range(n):
+        h = hints[k, lo + q]
+        which[m] = q
+        m += np.int64(need[q] & (h >= first) & (h < last))
+    S = np.empty(S_ROWS * BLOCK)
+    O = np.empty(O_ROWS * BLOCK)
+    for b in range(0, m, BLOCK):
+        block = which[b:min(b + BLOCK, m)]
+        _gather(S, P, L, (tris, prisms), hints, k, block, lo)
+        _decide(S, O, block.shape[0], frames, G[13], closed, placing)
+        for j in range(block.shape[0]):
+            q = block[j]
+            p = lo + q
+            route = O[_at(O_ROUTE, j)]
+            placed = route == 2.0
+            for c in range(3):
+                P[c, p] = O[_at(O_X + c, j)] if placed else P[c, p]
+            need[q] = route == 0.0
