@@ -87,11 +87,10 @@ def _crosses(S, j, seg, entry_only, slack):
 @njit(**EXACT_OPTIONS, inline="always")
 def _in_prism(S, j, x, y, z):
     """whether (x, y, z) (rest frame) lies within the three sides of column j's prism"""
-    inside = True
-    for side in range(3):
-        r = S_PRISM + 4 * side
-        inside = inside & (S[_at(r, j)] * x + S[_at(r + 1, j)] * y + S[_at(r + 2, j)] * z >= S[_at(r + 3, j)])
-    return inside
+    a, b, c = S_PRISM, S_PRISM + 4, S_PRISM + 8
+    return ((S[_at(a, j)] * x + S[_at(a + 1, j)] * y + S[_at(a + 2, j)] * z >= S[_at(a + 3, j)])
+            & (S[_at(b, j)] * x + S[_at(b + 1, j)] * y + S[_at(b + 2, j)] * z >= S[_at(b + 3, j)])
+            & (S[_at(c, j)] * x + S[_at(c + 1, j)] * y + S[_at(c + 2, j)] * z >= S[_at(c + 3, j)]))
 
 
 @njit(**EXACT_OPTIONS)
@@ -168,13 +167,13 @@ def _gather(S, P, L, rows, hints, k, which, lo):
     for j in range(which.shape[0]):
         p = lo + which[j]
         t = hints[k, p]
-        for c in range(3):
-            S[_at(S_LAST + c, j)] = L[c, p]
-            S[_at(S_NOW + c, j)] = P[c, p]
+        S[_at(S_LAST, j)], S[_at(S_LAST + 1, j)], S[_at(S_LAST + 2, j)] = L[0, p], L[1, p], L[2, p]
+        S[_at(S_NOW, j)], S[_at(S_NOW + 1, j)], S[_at(S_NOW + 2, j)] = P[0, p], P[1, p], P[2, p]
+        tri, prism = tris[t], prisms[t]
         for c in range(S_PRISM - S_TRI):
-            S[_at(S_TRI + c, j)] = tris[t, c]
+            S[_at(S_TRI + c, j)] = tri[c]
         for c in range(S_ROWS - S_PRISM):
-            S[_at(S_PRISM + c, j)] = prisms[t, c]
+            S[_at(S_PRISM + c, j)] = prism[c]
 
 
 @njit(**EXACT_OPTIONS)
@@ -207,6 +206,7 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, need):
             p = lo + q
             route = O[_at(O_ROUTE, j)]
             placed = route == 2.0
-            for c in range(3):
-                P[c, p] = O[_at(O_X + c, j)] if placed else P[c, p]
+            P[0, p] = O[_at(O_X, j)] if placed else P[0, p]
+            P[1, p] = O[_at(O_X + 1, j)] if placed else P[1, p]
+            P[2, p] = O[_at(O_X + 2, j)] if placed else P[2, p]
             need[q] = route == 0.0

@@ -34,3 +34,10 @@ def to_world(f, x, y, z):
     return (f[0] * x + f[1] * y + f[2] * z + f[9],
             f[3] * x + f[4] * y + f[5] * z + f[10],
             f[6] * x + f[7] * y + f[8] * z + f[11])
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def is_rest(f):
+    """whether the frame tuple ``f`` is the rest pose itself (R = I, o = 0, exactly)"""
+    return (f[0] == 1.0 and f[1] == 0.0 and f[2] == 0.0 and f[3] == 0.0 and f[4] == 1.0 and f[5] == 0.0
+            and f[6] == 0.0 and f[7] == 0.0 and f[8] == 1.0 and f[9] == 0.0 and f[10] == 0.0 and f[11] == 0.0)
