@@ -16,12 +16,12 @@ import trimesh
 
 from clothsim import Simulation
 from clothsim.scene import parse_scene
-from clothsim.solver.colliders.mesh import pack_meshes, with_hints
+from clothsim.solver.colliders.mesh import pack_meshes, pose_rows, with_hints
 from clothsim.solver.colliders.meshgrid import G_H
 from clothsim.solver.colliders.meshprism import P_DOWN, P_UP
 from clothsim.standard_scenes import scene_path
 
-from .test_mesh_collider import Ctl, face_distance, planes, run, shape, sphere, square, static
+from .test_mesh_collider import EYE, MARGIN, Ctl, face_distance, planes, run, shape, sphere, square, static
 from .test_mesh_slabs import settle_run, torus
 
 
@@ -114,6 +114,32 @@ def test_hints_right_stale_wrong_or_none_give_the_same_positions():
         np.testing.assert_array_equal(run(ctl._replace(mesh_hints=hints.copy()), P0.copy(), L), want)
         np.testing.assert_array_equal(settle_run(ctl._replace(mesh_hints=hints.copy()), P0.copy(), L),
                                       want_settled)
+
+
+def test_a_mesh_in_its_rest_pose_is_read_as_the_turned_one_is():
+    """a mesh standing in its rest pose skips the turns into its frame in the vector
+    pass (and the hinted points go in blocks): the same segments against the same
+    meshes posed one part in 1e300 off the rest pose, which takes the turns, end
+    where they end, bit for bit, hints and all, some coordinates not finite"""
+    shapes = [torus(), square(z=0.31, half=0.5)]
+    n = 3000
+    L, P0 = random_segments(n, 5)
+    for which, bad in enumerate((np.nan, np.inf, -np.inf)):
+        P0[which % 3, 7 + 11 * which] = bad
+        L[(which + 1) % 3, 500 + 13 * which] = bad
+    off = np.array([1e-300, 0.0, 0.0])
+    rest = static(friction=0.4, k=2)
+    near = np.repeat(pose_rows(EYE, off, EYE, off, 0.4, MARGIN)[None], 2, axis=0)
+    got = {}
+    for name, poses in (("rest", rest), ("near", near)):
+        ctl = hinted(shapes, poses, n)
+        first = run(ctl, P0.copy(), L)
+        hints = ctl.mesh_hints.copy()
+        got[name] = (first, run(ctl, P0.copy(), L), settle_run(ctl, P0.copy(), L), hints)
+    assert (got["rest"][3] >= 0).sum() > 1000  # many points went through the hint blocks
+    for a, b in zip(got["rest"], got["near"]):
+        np.testing.assert_array_equal(a, b)
+    assert np.any(got["rest"][0] != P0)
 
 
 def test_a_point_resting_on_its_triangle_is_placed_by_the_hint_alone():
