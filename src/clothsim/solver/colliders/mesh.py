@@ -461,10 +461,11 @@ def _clamped_cell(v, origin, inv_h, n):
 
 
 @njit(**EXACT_OPTIONS)
-def _look(P, L, free, lo, frames, G, limits, items, need):
+def _look(P, L, free, lo, frames, G, limits, items, need, listed):
     """The kernels' vector pass over points ``lo:lo + len(need)`` for one mesh in the
     poses ``frames`` (before, now; :func:`_frame`): ``need`` set for the points that the
-    per-point loop must look at, and their count. The rest are pinned, not finite,
+    per-point loop must look at, their numbers (from 0 at ``lo``, ascending) in the first
+    entries of ``listed`` (as long as ``need``), and their count. The rest are pinned, not finite,
     with a segment whose box misses the mesh's box grown by the reach, or
     (:func:`_clear`) with a segment shorter than ``short`` on every axis that ends in a
     cell without NEAR (and, for a closed mesh, whose centre is not inside), or, where
@@ -509,6 +510,7 @@ def _look(P, L, free, lo, frames, G, limits, items, need):
         if need[q] and cell[q] >= 0:
             st = items[s0 + cell[q]]
             need[q] = not ((st & NEAR) == 0 and not (closed and (st & INSIDE_BITS) != 0))
+        listed[count] = q
         count += np.int64(need[q])
     return count
 
@@ -552,6 +554,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
     lo = max(lo, 0)
     hi = min(hi, P.shape[1], L.shape[1], free.shape[0])
     need = np.empty(max(hi - lo, 0), dtype=np.bool_)
+    listed = np.empty(need.shape[0], dtype=np.int64)
     for k in range(min(meshes.shape[1], grid.shape[0])):
         m = _pose(meshes, grid, s, k)
         if m.shape[0] == 0:
@@ -566,11 +569,13 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         short = g[G_H] - 2.0 * reach
         first, last = _tri_range(g, tris, prisms)
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0  # the points below keep hints
-        if _look(P, L, free, lo, (before, now), G, (reach, short, closed, False), items, need) == 0:
+        count = _look(P, L, free, lo, (before, now), G, (reach, short, closed, False), items, need, listed)
+        if count == 0:
             continue
         hint_pass(P, L, (tris, prisms, hints, k, first, last, hinted, closed), (before, now), G,
-                   (margin, keep, True), lo, need)
-        for p in range(lo, hi):
+                  (margin, keep, True), lo, (need, listed[:count]))
+        for i in range(count):
+            p = lo + listed[i]
             if not need[p - lo]:
                 continue
             x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
@@ -631,6 +636,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
     lo = max(lo, 0)
     hi = min(hi, P.shape[1], Q.shape[1], free.shape[0])
     need = np.empty(max(hi - lo, 0), dtype=np.bool_)
+    listed = np.empty(need.shape[0], dtype=np.int64)
     for k in range(min(meshes.shape[1], grid.shape[0])):
         m = _pose(meshes, grid, s, k)
         if m.shape[0] == 0:
@@ -645,12 +651,14 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         first, last = _tri_range(g, tris, prisms)
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0
         # the cells' quiet test as the loop below makes it, for an open mesh
-        if _look(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, need) == 0:
+        count = _look(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, need, listed)
+        if count == 0:
             continue
         # no friction: the placement is the surface point, as below
         hint_pass(P, Q, (tris, prisms, hints, k, first, last, hinted, closed), (now, now), G,
-                   (margin, 1.0, False), lo, need)
-        for p in range(lo, hi):
+                  (margin, 1.0, False), lo, (need, listed[:count]))
+        for i in range(count):
+            p = lo + listed[i]
             if not need[p - lo]:
                 continue
             px, py, pz = P[0, p], P[1, p], P[2, p]

@@ -177,24 +177,27 @@ def _gather(S, P, L, rows, hints, k, which, lo):
 
 
 @njit(**EXACT_OPTIONS)
-def hint_pass(P, L, mesh, frames, G, placing, lo, need):
-    """The points of ``need`` (from ``lo``) that have a hint, all decided by it
-    (:func:`_decide`) before any search: a placed one written to ``P``, and ``need``
-    cleared for every point it decided. ``mesh``: (tris, prisms, hints, k, first,
+def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
+    """The points that ``marks`` (need, listed) lists (``lo`` + each number of
+    ``listed``; ``need`` set for each, indexed from ``lo``) and that have a hint, all
+    decided by it (:func:`_decide`) before any search: a placed one written to ``P``,
+    and ``need`` cleared for every point it decided. ``mesh``: (tris, prisms, hints, k, first,
     last, hinted, closed), the mesh's arrays, number, rows of ``mesh_tris`` holding
     its triangles (a hint outside them is not tried), the points that keep hints
     (below ``hinted``) and the closed flag; ``frames`` (before, now) as for
     :func:`_decide`; ``G`` the grid's scalars (its plane slack last)."""
     tris, prisms, hints, k, first, last, hinted, closed = mesh
-    n = min(need.shape[0], max(hinted - lo, 0))
+    need, listed = marks
+    n = min(need.shape[0], max(hinted - lo, 0))  # the points below keep hints
     if first >= last or n <= 0:
         return
-    which = np.empty(n, dtype=np.int64)
+    which = np.empty(listed.shape[0], dtype=np.int64)
     m = 0
-    for q in range(n):
+    for i in range(listed.shape[0]):
+        q = min(max(listed[i], 0), n - 1)
         h = hints[k, lo + q]
         which[m] = q
-        m += np.int64(need[q] & (h >= first) & (h < last))
+        m += np.int64((listed[i] == q) & need[q] & (h >= first) & (h < last))
     S = np.empty(S_ROWS * BLOCK)
     O = np.empty(O_ROWS * BLOCK)
     for b in range(0, m, BLOCK):
