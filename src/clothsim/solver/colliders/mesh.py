@@ -55,7 +55,7 @@ from numba import njit
 
 from ..shared import EXACT_OPTIONS
 from .meshgrid import (BARY_TOL, G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_STATUS0,
-                       G_TRI0, INSIDE_BITS, NEAR, T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, plane_slack)
+                       G_TRI0, INSIDE_BITS, NEAR, T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, plane_slack, put_off)
 from .meshhint import hint_pass
 from .meshpose import frame as _frame
 from .meshpose import is_rest
@@ -288,17 +288,9 @@ def _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, entry_
 
 @njit(**EXACT_OPTIONS, inline="always")
 def _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin):
-    """Where a point whose move q0 -> q1 crossed triangle t goes: q1 put on the
-    triangle's plane, as a plane collider puts it, then ``margin`` [m] off it on the
-    side q0 came from, or only as far as q0 was if that is nearer (a point resting
-    within the margin must not bounce off it). Friction alone (the caller's) takes
-    tangential motion away, not the segment."""
-    nx, ny, nz, w = tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET]
-    side = 1.0 if (x1 - x0) * nx + (y1 - y0) * ny + (z1 - z0) * nz < 0.0 else -1.0
-    d0 = abs(x0 * nx + y0 * ny + z0 * nz - w)
-    d1 = x1 * nx + y1 * ny + z1 * nz - w
-    off = side * min(margin, d0) - d1
-    return x1 + off * nx, y1 + off * ny, z1 + off * nz
+    """:func:`.meshgrid.put_off` on triangle t's plane"""
+    plane = (tris[t, T_NORMAL], tris[t, T_NORMAL + 1], tris[t, T_NORMAL + 2], tris[t, T_OFFSET])
+    return put_off(plane, (x0, y0, z0, x1, y1, z1), margin)
 
 
 @njit(**EXACT_OPTIONS, inline="always")

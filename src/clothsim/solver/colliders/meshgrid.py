@@ -99,6 +99,23 @@ through an edge or corner shared by two triangles crosses at least one of them""
 
 
 @njit(**EXACT_OPTIONS, inline="always")
+def put_off(plane, seg, margin):
+    """Where a point whose move q0 -> q1 (``seg``: x0, y0, z0, x1, y1, z1) crossed a
+    triangle of ``plane`` (nx, ny, nz, offset [m]) goes: q1 put on the plane, as a
+    plane collider puts it, then ``margin`` [m] off it on the side q0 came from, or
+    only as far as q0 was if that is nearer (a point resting within the margin must
+    not bounce off it). Friction alone (the caller's) takes tangential motion
+    away, not the segment. The search and the hint blocks both place with it."""
+    nx, ny, nz, w = plane
+    x0, y0, z0, x1, y1, z1 = seg
+    side = 1.0 if (x1 - x0) * nx + (y1 - y0) * ny + (z1 - z0) * nz < 0.0 else -1.0
+    d0 = abs(x0 * nx + y0 * ny + z0 * nz - w)
+    d1 = x1 * nx + y1 * ny + z1 * nz - w
+    off = side * min(margin, d0) - d1
+    return x1 + off * nx, y1 + off * ny, z1 + off * nz
+
+
+@njit(**EXACT_OPTIONS, inline="always")
 def plane_slack(g):
     """PLANE_SLACK [m] for grid row ``g``, with the rounding of coordinates as large
     as its box's: the searches' margin on each triangle's plane."""

@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS
-from .meshgrid import BARY_TOL, T_NORMAL, T_OFFSET
+from .meshgrid import BARY_TOL, T_NORMAL, T_OFFSET, put_off
 from .meshpose import to_rest, to_world
 from .meshprism import P_DOWN, P_UP
 
@@ -137,12 +137,8 @@ def _decide(S, O, count, frames, tiny, closed, placing):
         dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
         slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
         crosses = _crosses(S, j, (x0, y0, z0, dx, dy, dz), closed, slack)
-        # the placement of :func:`.mesh._put_off`, then the friction rule, as the kernels make them
-        toward = 1.0 if dx * nx + dy * ny + dz * nz < 0.0 else -1.0
-        d0 = abs(x0 * nx + y0 * ny + z0 * nz - w)
-        d1 = x1 * nx + y1 * ny + z1 * nz - w
-        off = toward * min(margin, d0) - d1
-        x, y, z = x1 + off * nx, y1 + off * ny, z1 + off * nz
+        # the search's placement, then the friction rule, as the kernels make them
+        x, y, z = put_off((nx, ny, nz, w), (x0, y0, z0, x1, y1, z1), margin)
         if friction:
             x, y, z = x0 + keep * (x - x0), y0 + keep * (y - y0), z0 + keep * (z - z0)
         hc = side * (nx * x + ny * y + nz * z - w)
@@ -179,7 +175,7 @@ def _gather(S, P, L, rows, hints, k, which, lo):
 @njit(**EXACT_OPTIONS)
 def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     """The points that ``marks`` (need, listed) lists (``lo`` + each number of
-    ``listed``; ``need`` set for each, indexed from ``lo``) and that have a hint, all
+    ``listed``, ascending, each in 0..len(need) - 1 with ``need`` set) and that have a hint, all
     decided by it (:func:`_decide`) before any search: a placed one written to ``P``,
     and ``need`` cleared for every point it decided. ``mesh``: (tris, prisms, hints, k, first,
     last, hinted, closed), the mesh's arrays, number, rows of ``mesh_tris`` holding
@@ -194,10 +190,12 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     which = np.empty(listed.shape[0], dtype=np.int64)
     m = 0
     for i in range(listed.shape[0]):
-        q = min(max(listed[i], 0), n - 1)
+        q = listed[i]
+        if q >= n:  # listed in ascending order: the rest keep no hints either
+            break
         h = hints[k, lo + q]
         which[m] = q
-        m += np.int64((listed[i] == q) & need[q] & (h >= first) & (h < last))
+        m += np.int64((h >= first) & (h < last))
     S = np.empty(S_ROWS * BLOCK)
     O = np.empty(O_ROWS * BLOCK)
     for b in range(0, m, BLOCK):
