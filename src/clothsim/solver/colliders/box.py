@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from ...motion import rotation_matrices
+from ..blend import unchanged
 from ..shared import KERNEL_OPTIONS
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
@@ -176,7 +177,8 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
         mx, my, mz = rx[p], ry[p], rz[p]
         if carry:
             mx, my, mz = carry_point(a, mx, my, mz)
-        dx, dy, dz = x[p] - cx, y[p] - cy, z[p] - cz
+        xp, yp, zp = x[p], y[p], z[p]
+        dx, dy, dz = xp - cx, yp - cy, zp - cz
         ex, ey, ez = mx - cx, my - cy, mz - cz
         if aligned:
             u1, v1, w1, u0, v0, w0 = dx, dy, dz, ex, ey, ez
@@ -199,9 +201,9 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
             nx = cx + r00 * fu + r01 * fv + r02 * fw
             ny = cy + r10 * fu + r11 * fv + r12 * fw
             nz = cz + r20 * fu + r21 * fv + r22 * fw
-        x[p] = nx if simple else x[p]
-        y[p] = ny if simple else y[p]
-        z[p] = nz if simple else z[p]
+        x[p] = nx if simple else unchanged(xp)  # a whole store (see ..blend)
+        y[p] = ny if simple else unchanged(yp)
+        z[p] = nz if simple else unchanged(zp)
         # the rest that end inside: near an edge or corner, or inside from before
         mark = inside1 & (fr[p] != 0.0) & (simple ^ True)
         marked[p] = mark

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
+from ..blend import unchanged
 from ..shared import KERNEL_OPTIONS
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
@@ -55,30 +56,34 @@ def collide_planes(P, L, free, planes, lo, hi, s):
         keep = 1.0 - row[6]
         if not moving:  # the course code's loop, to the bit: no carry in its sums
             for p in range(x.shape[0]):
-                d_now = (x[p] - px) * nx + (y[p] - py) * ny + (z[p] - pz) * nz
+                # whole stores, not masked ones (see ..blend); the test
+                # without short cuts, so that free[p] is read for every point
+                xp, yp, zp = x[p], y[p], z[p]
+                d_now = (xp - px) * nx + (yp - py) * ny + (zp - pz) * nz
                 d_last = (lx[p] - px) * nx + (ly[p] - py) * ny + (lz[p] - pz) * nz
                 side = 1.0 if d_last >= 0.0 else -1.0
-                hit = d_now * side <= 0.0 and free[p] != 0.0
+                hit = (d_now * side <= 0.0) & (free[p] != 0.0)
                 # tangent point on the plane, lifted to the old side
                 move = side * PLANE_OFFSET - d_now
-                tx = lx[p] + keep * (x[p] + move * nx - lx[p])
-                ty = ly[p] + keep * (y[p] + move * ny - ly[p])
-                tz = lz[p] + keep * (z[p] + move * nz - lz[p])
-                x[p] = tx if hit else x[p]
-                y[p] = ty if hit else y[p]
-                z[p] = tz if hit else z[p]
+                tx = lx[p] + keep * (xp + move * nx - lx[p])
+                ty = ly[p] + keep * (yp + move * ny - ly[p])
+                tz = lz[p] + keep * (zp + move * nz - lz[p])
+                x[p] = tx if hit else unchanged(xp)
+                y[p] = ty if hit else unchanged(yp)
+                z[p] = tz if hit else unchanged(zp)
             continue
         a = carry_of(row, 7)
         for p in range(x.shape[0]):
+            xp, yp, zp = x[p], y[p], z[p]
             mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
-            d_now = (x[p] - px) * nx + (y[p] - py) * ny + (z[p] - pz) * nz
+            d_now = (xp - px) * nx + (yp - py) * ny + (zp - pz) * nz
             d_last = (mx - px) * nx + (my - py) * ny + (mz - pz) * nz
             side = 1.0 if d_last >= 0.0 else -1.0
-            hit = d_now * side <= 0.0 and free[p] != 0.0
+            hit = (d_now * side <= 0.0) & (free[p] != 0.0)
             move = side * PLANE_OFFSET - d_now
-            tx = mx + keep * (x[p] + move * nx - mx)
-            ty = my + keep * (y[p] + move * ny - my)
-            tz = mz + keep * (z[p] + move * nz - mz)
-            x[p] = tx if hit else x[p]
-            y[p] = ty if hit else y[p]
-            z[p] = tz if hit else z[p]
+            tx = mx + keep * (xp + move * nx - mx)
+            ty = my + keep * (yp + move * ny - my)
+            tz = mz + keep * (zp + move * nz - mz)
+            x[p] = tx if hit else unchanged(xp)
+            y[p] = ty if hit else unchanged(yp)
+            z[p] = tz if hit else unchanged(zp)

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
+from ..blend import unchanged
 from ..shared import KERNEL_OPTIONS
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
@@ -91,23 +92,26 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
         fast = 0
         if not moving:  # the course code's loop, to the bit: no carry in its sums
             for p in range(x.shape[0]):
-                dx = x[p] - cx
-                dy = y[p] - cy
-                dz = z[p] - cz
+                # whole stores, not masked ones (see ..blend); the test
+                # without short cuts, so that free[p] is read for every point
+                xp, yp, zp = x[p], y[p], z[p]
+                dx = xp - cx
+                dy = yp - cy
+                dz = zp - cz
                 d2 = dx * dx + dy * dy + dz * dz
-                ux = x[p] - lx[p]
-                uy = y[p] - ly[p]
-                uz = z[p] - lz[p]
+                ux = xp - lx[p]
+                uy = yp - ly[p]
+                uz = zp - lz[p]
                 far = ux * ux + uy * uy + uz * uz > far2
                 fast += far
-                hit = d2 < r2 and d2 > 0.0 and free[p] != 0.0 and not far
+                hit = (d2 < r2) & (d2 > 0.0) & (free[p] != 0.0) & (not far)
                 f = r / np.sqrt(d2 if hit else 1.0)
                 nx = lx[p] + keep * (cx + dx * f - lx[p])
                 ny = ly[p] + keep * (cy + dy * f - ly[p])
                 nz = lz[p] + keep * (cz + dz * f - lz[p])
-                x[p] = nx if hit else x[p]
-                y[p] = ny if hit else y[p]
-                z[p] = nz if hit else z[p]
+                x[p] = nx if hit else unchanged(xp)
+                y[p] = ny if hit else unchanged(yp)
+                z[p] = nz if hit else unchanged(zp)
             if fast:
                 _far(x, y, z, lx, ly, lz, free, row, False)
             continue
@@ -141,24 +145,25 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
             mxs[p], mys[p], mzs[p] = carry_point(a, lxq[p], lyq[p], lzq[p])
         xq, yq, zq, fq = x[q:], y[q:], z[q:], free[q:]
         for p in range(m):
-            dx = xq[p] - cx
-            dy = yq[p] - cy
-            dz = zq[p] - cz
+            xp, yp, zp = xq[p], yq[p], zq[p]
+            dx = xp - cx
+            dy = yp - cy
+            dz = zp - cz
             d2 = dx * dx + dy * dy + dz * dz
             mx, my, mz = mxs[p], mys[p], mzs[p]
-            ux = xq[p] - mx
-            uy = yq[p] - my
-            uz = zq[p] - mz
+            ux = xp - mx
+            uy = yp - my
+            uz = zp - mz
             far = ux * ux + uy * uy + uz * uz > far2
             fast += far
-            hit = d2 < r2 and d2 > 0.0 and fq[p] != 0.0 and not far
+            hit = (d2 < r2) & (d2 > 0.0) & (fq[p] != 0.0) & (not far)
             f = r / np.sqrt(d2 if hit else 1.0)
             nx = mx + keep * (cx + dx * f - mx)
             ny = my + keep * (cy + dy * f - my)
             nz = mz + keep * (cz + dz * f - mz)
-            xq[p] = nx if hit else xq[p]
-            yq[p] = ny if hit else yq[p]
-            zq[p] = nz if hit else zq[p]
+            xq[p] = nx if hit else unchanged(xp)
+            yq[p] = ny if hit else unchanged(yp)
+            zq[p] = nz if hit else unchanged(zp)
     return fast
 
 
