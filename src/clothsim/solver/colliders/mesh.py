@@ -452,6 +452,29 @@ def _clamped_cell(v, origin, inv_h, n):
     return np.int32(f)
 
 
+@njit(**EXACT_OPTIONS, inline="always")
+def _flag(q, segment, here, bounds, need, cell):
+    """The tests of :func:`_look` for point q, its segment (x0, y0, z0, x1, y1, z1)
+    in the mesh's rest frame: ``need[q]`` as :func:`_look` says, ``cell[q]`` the cell
+    of its end where the move is short on every axis (-1 where not). ``here``: the
+    point views (lx, ly, lz, px, py, pz, free) from the first point; ``bounds``:
+    (reach, short, moved, the grid's origin (3), its far corner (3), 1/h, its
+    counts as floats (3) and as int32 (2))."""
+    x0, y0, z0, x1, y1, z1 = segment
+    lx, ly, lz, px, py, pz, fr = here
+    reach, short, moved, ox, oy, oz, hx, hy, hz, inv, nx, ny, nz, inx, iny = bounds
+    finite = (np.isfinite(x0) & np.isfinite(y0) & np.isfinite(z0) & np.isfinite(x1) & np.isfinite(y1)
+              & np.isfinite(z1))
+    meets = ((_larger(x0, x1) + reach >= ox) & (_smaller(x0, x1) - reach <= hx)
+             & (_larger(y0, y1) + reach >= oy) & (_smaller(y0, y1) - reach <= hy)
+             & (_larger(z0, z1) + reach >= oz) & (_smaller(z0, z1) - reach <= hz))
+    ix, iy, iz = _clamped_cell(x1, ox, inv, nx), _clamped_cell(y1, oy, inv, ny), _clamped_cell(z1, oz, inv, nz)
+    short_move = (abs(x1 - x0) < short) & (abs(y1 - y0) < short) & (abs(z1 - z0) < short)
+    need[q] = ((fr[q] != 0.0) & finite & meets
+               & ((not moved) | (lx[q] != px[q]) | (ly[q] != py[q]) | (lz[q] != pz[q])))
+    cell[q] = (iz * iny + iy) * inx + ix if short_move else np.int32(-1)
+
+
 @njit(**EXACT_OPTIONS)
 def _look(P, L, free, lo, frames, G, limits, items, need, listed):
     """The kernels' vector pass over points ``lo:lo + len(need)`` for one mesh in the
@@ -481,22 +504,18 @@ def _look(P, L, free, lo, frames, G, limits, items, need, listed):
     px, py, pz = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
     fr = free[lo:lo + n]
     cell = np.empty(n, dtype=np.int32)
-    for q in range(n):  # vectorised: no gather in it
-        if plain:
-            x0, y0, z0, x1, y1, z1 = lx[q], ly[q], lz[q], px[q], py[q], pz[q]
-        else:
+    here = (lx, ly, lz, px, py, pz, fr)
+    bounds = (reach, short, moved, ox, oy, oz, hx, hy, hz, inv, nx, ny, nz, inx, iny)
+    # two loops, not one with the test inside: LLVM kept that test in the loop
+    # and read the positions there through masked loads
+    if plain:
+        for q in range(n):  # vectorised: no gather in it
+            _flag(q, (lx[q], ly[q], lz[q], px[q], py[q], pz[q]), here, bounds, need, cell)
+    else:
+        for q in range(n):
             x0, y0, z0 = _to_rest(before, lx[q], ly[q], lz[q])
             x1, y1, z1 = _to_rest(now, px[q], py[q], pz[q])
-        finite = (np.isfinite(x0) & np.isfinite(y0) & np.isfinite(z0) & np.isfinite(x1) & np.isfinite(y1)
-                  & np.isfinite(z1))
-        meets = ((_larger(x0, x1) + reach >= ox) & (_smaller(x0, x1) - reach <= hx)
-                 & (_larger(y0, y1) + reach >= oy) & (_smaller(y0, y1) - reach <= hy)
-                 & (_larger(z0, z1) + reach >= oz) & (_smaller(z0, z1) - reach <= hz))
-        ix, iy, iz = _clamped_cell(x1, ox, inv, nx), _clamped_cell(y1, oy, inv, ny), _clamped_cell(z1, oz, inv, nz)
-        short_move = (abs(x1 - x0) < short) & (abs(y1 - y0) < short) & (abs(z1 - z0) < short)
-        need[q] = ((fr[q] != 0.0) & finite & meets
-                   & ((not moved) | (lx[q] != px[q]) | (ly[q] != py[q]) | (lz[q] != pz[q])))
-        cell[q] = (iz * iny + iy) * inx + ix if short_move else np.int32(-1)
+            _flag(q, (x0, y0, z0, x1, y1, z1), here, bounds, need, cell)
     count = 0
     for q in range(n):  # the cells' status entries, read for the points still in question
         if need[q] and cell[q] >= 0:
