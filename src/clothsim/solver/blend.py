@@ -16,12 +16,14 @@ the only one (a store to another coordinate plane in between may alias).
 :func:`unchanged` is LLVM's ``freeze``, which returns its operand as it is
 (it only fixes a value that is undefined, which a number read from memory
 never is): the same bits, with no instruction emitted for it.
+:func:`write_point` states that write-back once, for the three coordinate
+planes of a point.
 """
 
 from __future__ import annotations
 
 from llvmlite import ir
-from numba import types
+from numba import njit, types
 from numba.extending import intrinsic
 
 
@@ -41,3 +43,14 @@ def unchanged(typingctx, value):
         return frozen
 
     return value(value), codegen
+
+
+@njit(cache=True, inline="always")
+def write_point(planes, p, hit, new, old):
+    """Point ``p`` of the coordinate planes ``planes`` (x, y, z; m) set to ``new``
+    (three floats, m) where ``hit``, else to ``old`` (the three read from it in
+    this pass), kept as it is: whole stores of a blend, see the module."""
+    x, y, z = planes
+    x[p] = new[0] if hit else unchanged(old[0])
+    y[p] = new[1] if hit else unchanged(old[1])
+    z[p] = new[2] if hit else unchanged(old[2])

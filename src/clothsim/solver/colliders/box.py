@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from ...motion import rotation_matrices
-from ..blend import unchanged
+from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
@@ -201,9 +201,7 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
             nx = cx + r00 * fu + r01 * fv + r02 * fw
             ny = cy + r10 * fu + r11 * fv + r12 * fw
             nz = cz + r20 * fu + r21 * fv + r22 * fw
-        x[p] = nx if simple else unchanged(xp)  # a whole store (see ..blend)
-        y[p] = ny if simple else unchanged(yp)
-        z[p] = nz if simple else unchanged(zp)
+        write_point((x, y, z), p, simple, (nx, ny, nz), (xp, yp, zp))
         # the rest that end inside: near an edge or corner, or inside from before
         mark = inside1 & (fr[p] != 0.0) & (simple ^ True)
         marked[p] = mark

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from ..blend import unchanged
+from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
@@ -68,9 +68,7 @@ def collide_planes(P, L, free, planes, lo, hi, s):
                 tx = lx[p] + keep * (xp + move * nx - lx[p])
                 ty = ly[p] + keep * (yp + move * ny - ly[p])
                 tz = lz[p] + keep * (zp + move * nz - lz[p])
-                x[p] = tx if hit else unchanged(xp)
-                y[p] = ty if hit else unchanged(yp)
-                z[p] = tz if hit else unchanged(zp)
+                write_point((x, y, z), p, hit, (tx, ty, tz), (xp, yp, zp))
             continue
         a = carry_of(row, 7)
         for p in range(x.shape[0]):
@@ -84,6 +82,4 @@ def collide_planes(P, L, free, planes, lo, hi, s):
             tx = mx + keep * (xp + move * nx - mx)
             ty = my + keep * (yp + move * ny - my)
             tz = mz + keep * (zp + move * nz - mz)
-            x[p] = tx if hit else unchanged(xp)
-            y[p] = ty if hit else unchanged(yp)
-            z[p] = tz if hit else unchanged(zp)
+            write_point((x, y, z), p, hit, (tx, ty, tz), (xp, yp, zp))

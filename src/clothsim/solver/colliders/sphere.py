@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from ..blend import unchanged
+from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
@@ -109,9 +109,7 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
                 nx = lx[p] + keep * (cx + dx * f - lx[p])
                 ny = ly[p] + keep * (cy + dy * f - ly[p])
                 nz = lz[p] + keep * (cz + dz * f - lz[p])
-                x[p] = nx if hit else unchanged(xp)
-                y[p] = ny if hit else unchanged(yp)
-                z[p] = nz if hit else unchanged(zp)
+                write_point((x, y, z), p, hit, (nx, ny, nz), (xp, yp, zp))
             if fast:
                 _far(x, y, z, lx, ly, lz, free, row, False)
             continue
@@ -161,9 +159,7 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
             nx = mx + keep * (cx + dx * f - mx)
             ny = my + keep * (cy + dy * f - my)
             nz = mz + keep * (cz + dz * f - mz)
-            xq[p] = nx if hit else unchanged(xp)
-            yq[p] = ny if hit else unchanged(yp)
-            zq[p] = nz if hit else unchanged(zp)
+            write_point((xq, yq, zq), p, hit, (nx, ny, nz), (xp, yp, zp))
     return fast
 
 
