@@ -53,7 +53,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..shared import EXACT_OPTIONS
+from ..shared import EXACT_OPTIONS, pop_lowest
 from .meshgrid import (BARY_TOL, G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_STATUS0,
                        G_TRI0, INSIDE_BITS, NEAR, T_NORMAL, T_OFFSET, UNKNOWN, cell_coord, plane_slack, put_off)
 from .meshhint import hint_pass
@@ -518,11 +518,95 @@ def _look(P, L, free, lo, frames, G, limits, items, need, listed):
             _flag(q, (x0, y0, z0, x1, y1, z1), here, bounds, need, cell)
     count = 0
     for q in range(n):  # the cells' status entries, read for the points still in question
-        if need[q] and cell[q] >= 0:
-            st = items[s0 + cell[q]]
-            need[q] = not ((st & NEAR) == 0 and not (closed and (st & INSIDE_BITS) != 0))
+        need[q] = _busy(q, items, s0, closed, need, cell)
         listed[count] = q
         count += np.int64(need[q])
+    return count
+
+
+FEW_MOVED = 5
+"""the settle pass looks at the points that moved one by one where at most one in
+FEW_MOVED did: :func:`_look_moved`"""
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _busy(q, items, s0, closed, need, cell):
+    """``need[q]``, but False where point q's cell (``cell[q]``, -1 for none) is quiet:
+    no NEAR bit in its status entry (``items[s0 + cell]``) and, for a closed mesh,
+    its centre not inside."""
+    if need[q] and cell[q] >= 0:
+        st = items[np.uint64(s0 + cell[q])]  # unsigned: no wrap-around select
+        return not ((st & NEAR) == 0 and not (closed and (st & INSIDE_BITS) != 0))
+    return need[q]
+
+
+@njit(**EXACT_OPTIONS)
+def _moved(here, moving):
+    """How many free points moved (``here`` as for :func:`_flag`: L the positions
+    before a later pass), each marked 1 in ``moving`` (uint8, a multiple of 8 long;
+    the rest 0)."""
+    lx, ly, lz, px, py, pz, fr = here
+    n = fr.shape[0]
+    count = 0
+    for q in range(n):  # vectorised
+        m = (fr[q] != 0.0) & ((lx[q] != px[q]) | (ly[q] != py[q]) | (lz[q] != pz[q]))
+        moving[q] = np.uint8(m)
+        count += np.int64(m)
+    for q in range(n, moving.shape[0]):
+        moving[q] = 0
+    return count
+
+
+@njit(**EXACT_OPTIONS)
+def _look_settle(P, L, free, lo, frames, G, limits, items, need, listed):
+    """:func:`_look` where ``moved`` (the settle pass: ``L`` the positions before a later
+    pass, which most points left where they were): where at most one point in
+    FEW_MOVED moved, :func:`_look_moved` flags those alone, with the same
+    outcome."""
+    before, now = frames
+    reach, short, closed, moved = limits
+    ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, _, s0f, _ = G
+    n = need.shape[0]
+    lx, ly, lz = L[0, lo:lo + n], L[1, lo:lo + n], L[2, lo:lo + n]
+    px, py, pz = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
+    here = (lx, ly, lz, px, py, pz, free[lo:lo + n])
+    moving = np.empty(((n + 7) // 8) * 8, dtype=np.uint8)
+    if not moved or _moved(here, moving) * FEW_MOVED > n:
+        return _look(P, L, free, lo, frames, G, limits, items, need, listed)
+    plain = is_rest(before) and is_rest(now)
+    bounds = (reach, short, moved, ox, oy, oz, hx, hy, hz, inv, nx, ny, nz, np.int32(nx), np.int32(ny))
+    cell = np.empty(n, dtype=np.int32)
+    return _look_moved(frames, plain, here, bounds, (items, int(s0f), closed), moving, need, cell, listed)
+
+
+@njit(**EXACT_OPTIONS)
+def _look_moved(frames, plain, here, bounds, status, moving, need, cell, listed):
+    """:func:`_look` for the points that ``moving`` marks, the only ones whose ``need``
+    can be set where ``moved``: each flagged alone, eight marks read at once, so that
+    a settle pass after which few points moved reads the rest once (a vector loop
+    over every point's tests took four times as long). The same flags, list and
+    count as :func:`_look`'s loops."""
+    before, now = frames
+    lx, ly, lz, px, py, pz, _ = here
+    items, s0, closed = status
+    need[:] = False
+    words = moving.view(np.uint64)
+    count = 0
+    for w in range(words.shape[0]):
+        bits = words[w]
+        while bits:
+            b, bits = pop_lowest(bits)
+            q = w * 8 + b // 8  # each mark is one byte, 0 or 1
+            if plain:
+                segment = (lx[q], ly[q], lz[q], px[q], py[q], pz[q])
+            else:
+                x0, y0, z0 = _to_rest(before, lx[q], ly[q], lz[q])
+                x1, y1, z1 = _to_rest(now, px[q], py[q], pz[q])
+                segment = (x0, y0, z0, x1, y1, z1)
+            _flag(q, segment, here, bounds, need, cell)
+            need[q] = _busy(q, items, s0, closed, need, cell)
+            listed[count] = q
+            count += np.int64(need[q])
     return count
 
 
@@ -662,7 +746,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         first, last = _tri_range(g, tris, prisms)
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0
         # the cells' quiet test as the loop below makes it, for an open mesh
-        count = _look(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, need, listed)
+        count = _look_settle(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, need, listed)
         if count == 0:
             continue
         # no friction: the placement is the surface point, as below

@@ -47,8 +47,9 @@ O_X, O_ROUTE, O_ROWS = 0, 3, 4
 
 @njit(**EXACT_OPTIONS, inline="always")
 def _at(row, j):
-    """the flat scratch index of ``row``, column j"""
-    return row * BLOCK + j
+    """the flat scratch index of ``row``, column j: unsigned, so that numba adds no
+    wrap-around select for a negative index (j is never negative)"""
+    return np.uint64(row * BLOCK + j)
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -161,15 +162,14 @@ def _gather(S, P, L, rows, hints, k, which, lo):
     from ``rows`` (tris, prisms)."""
     tris, prisms = rows
     for j in range(which.shape[0]):
-        p = lo + which[j]
-        t = hints[k, p]
+        p = np.uint64(lo + which[j])  # unsigned indices: no wrap-around selects
+        t = np.uint64(hints[k, p])
         S[_at(S_LAST, j)], S[_at(S_LAST + 1, j)], S[_at(S_LAST + 2, j)] = L[0, p], L[1, p], L[2, p]
         S[_at(S_NOW, j)], S[_at(S_NOW + 1, j)], S[_at(S_NOW + 2, j)] = P[0, p], P[1, p], P[2, p]
-        tri, prism = tris[t], prisms[t]
         for c in range(S_PRISM - S_TRI):
-            S[_at(S_TRI + c, j)] = tri[c]
+            S[_at(S_TRI + c, j)] = tris[t, np.uint64(c)]
         for c in range(S_ROWS - S_PRISM):
-            S[_at(S_PRISM + c, j)] = prism[c]
+            S[_at(S_PRISM + c, j)] = prisms[t, np.uint64(c)]
 
 
 @njit(**EXACT_OPTIONS)
@@ -204,7 +204,7 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
         _decide(S, O, block.shape[0], frames, G[13], closed, placing)
         for j in range(block.shape[0]):
             q = block[j]
-            p = lo + q
+            p = np.uint64(lo + q)
             route = O[_at(O_ROUTE, j)]
             placed = route == 2.0
             P[0, p] = O[_at(O_X, j)] if placed else P[0, p]
