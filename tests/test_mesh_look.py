@@ -1,0 +1,92 @@
+"""The mesh kernels' first pass (solver/colliders/meshlook.py): the settle pass's
+look at the points a later pass moved, one by one, flags and lists the same
+points as the vector pass over every point."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from clothsim.solver.colliders.mesh import _grid_scalars, _reach, pack_meshes, pose_rows
+from clothsim.solver.colliders.meshgrid import G_H
+from clothsim.solver.colliders.meshlook import FEW_MOVED, look, look_settle
+from clothsim.solver.colliders.meshpose import frame
+
+from .test_mesh_collider import EYE, ZERO
+from .test_mesh_slabs import torus
+
+
+def turned():
+    """a pose turned 30 degrees about z and moved, as rows of a frame"""
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return pose_rows(R, [0.1, -0.05, 0.02], R, [0.1, -0.05, 0.02], 0.0, 1e-3)
+
+
+def cloth_over(seed, n=3000):
+    """(Q, P) (3, n) [m]: points around the torus, some on its surface, with
+    pinned, NaN and infinite ones"""
+    rng = np.random.default_rng(seed)
+    m = torus()
+    on = m.vertices[rng.integers(0, len(m.vertices), n // 2)]
+    anywhere = rng.uniform(-1.0, 1.0, (n - n // 2, 3)) * [1.0, 1.0, 0.4]
+    Q = np.concatenate([on, anywhere]).T.copy()
+    Q[:, rng.integers(0, n, 5)] = np.nan
+    Q[1, rng.integers(0, n, 3)] = np.inf
+    return Q
+
+
+def both(ctl_fields, pose, P, Q, free):
+    """(count, need, listed) of the vector pass and of :func:`look_settle`"""
+    g = ctl_fields["mesh_grid"][0]
+    G = _grid_scalars(g)
+    reach = _reach(g)
+    now = frame(pose, 0)
+    limits = (reach, g[G_H] - 2.0 * reach, False, True)
+    out = []
+    for kernel in (look, look_settle):
+        need = np.ones(P.shape[1], dtype=np.bool_)
+        listed = np.full(P.shape[1], -1, dtype=np.int64)
+        count = kernel(P, Q, free, np.int64(0), (now, now), G, limits, ctl_fields["mesh_items"], need, listed)
+        out.append((count, need, listed[:count]))
+    return out
+
+
+@pytest.mark.parametrize("moved_share", [0.0, 0.001, 0.05, 1.0 / (FEW_MOVED + 1), 0.5])
+# up to one in FEW_MOVED moved, look_settle flags them one by one; beyond, it runs the vector pass
+@pytest.mark.parametrize("posed", ["rest", "turned"])
+def test_the_settle_pass_flags_the_moved_points_as_the_vector_pass_does(moved_share, posed):
+    packed = pack_meshes([torus()])
+    pose = pose_rows(EYE, ZERO, EYE, ZERO, 0.0, 1e-3) if posed == "rest" else turned()
+    for seed in range(3):
+        Q = cloth_over(seed)
+        n = Q.shape[1]
+        rng = np.random.default_rng(100 + seed)
+        P = Q.copy()
+        moved = rng.random(n) < moved_share
+        P[:, moved] += rng.normal(size=(3, int(moved.sum()))) * rng.choice([1e-4, 3e-3, 0.05], (1, int(moved.sum())))
+        free = np.ones(n)
+        free[rng.integers(0, n, 20)] = 0.0
+        (c0, need0, list0), (c1, need1, list1) = both(packed, pose, P, Q, free)
+        assert c0 == c1
+        np.testing.assert_array_equal(need0, need1)
+        np.testing.assert_array_equal(list0, list1)
+        assert c0 <= moved.sum()
+        if 0.01 < moved_share < 0.5:  # a real share of them near the torus
+            assert c0 > 0
+
+
+def test_only_moved_free_finite_points_near_the_surface_are_listed():
+    """a point left where it was, a pinned one and a NaN one are not listed; one moved
+    across the torus's surface is"""
+    packed = pack_meshes([torus()])
+    pose = pose_rows(EYE, ZERO, EYE, ZERO, 0.0, 1e-3)
+    top = np.array([0.6, 0.0, 0.2])  # on the tube's top
+    Q = np.array([top + [0, 0, 0.002]] * 4).T.copy()
+    P = Q.copy()
+    P[2, [0, 2, 3]] -= 0.004  # through the surface
+    P[0, 3] = np.nan
+    free = np.array([1.0, 1.0, 0.0, 1.0])
+    for count, need, listed in both(packed, pose, P, Q, free):
+        assert count == 1 and listed[0] == 0
+        assert need.tolist() == [True, False, False, False]
