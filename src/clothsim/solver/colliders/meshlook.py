@@ -101,8 +101,20 @@ def look(P, L, free, lo, frames, G, limits, items, need, listed):
             x0, y0, z0 = _to_rest(before, lx[q], ly[q], lz[q])
             x1, y1, z1 = _to_rest(now, px[q], py[q], pz[q])
             _flag(q, (x0, y0, z0, x1, y1, z1), here, bounds, need, cell)
+    # the cells' status entries, read for the points still in question: their flags
+    # eight at a time (one byte each, 0 or 1), a word of none skipped at once
     count = 0
-    for q in range(n):  # the cells' status entries, read for the points still in question
+    whole = n // 8 * 8
+    words = need[:whole].view(np.uint64)
+    for w in range(words.shape[0]):
+        bits = words[w]
+        while bits:
+            b, bits = pop_lowest(bits)
+            q = w * 8 + b // 8
+            need[q] = _busy(q, items, s0, closed, need, cell)
+            listed[count] = q
+            count += np.int64(need[q])
+    for q in range(whole, n):
         need[q] = _busy(q, items, s0, closed, need, cell)
         listed[count] = q
         count += np.int64(need[q])
