@@ -32,7 +32,7 @@ from numba import njit
 
 from ..model import BENDING, SHEARING, STRUCTURAL
 from .provot import MAX_STRETCH
-from .shared import KERNEL_OPTIONS, inv_length
+from .shared import KERNEL_OPTIONS, over_length
 
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
 """the spring kind of each stencil set"""
@@ -231,7 +231,7 @@ def spring_forces(P, k_over_m, springs, F, lo, hi):
             dx = xb[p] - xa[p]
             dy = yb[p] - ya[p]
             dz = zb[p] - za[p]
-            f = k - k * rl[p] * inv_length(dx * dx + dy * dy + dz * dz)
+            f = k - over_length(k * rl[p], dx * dx + dy * dy + dz * dz)
             fx[p] = f * dx
             fy[p] = f * dy
             fz[p] = f * dz
