@@ -26,7 +26,7 @@ import functools
 import numpy as np
 from numba import njit
 
-from .shared import KERNEL_OPTIONS, inv_length
+from .shared import KERNEL_OPTIONS, over_length
 
 AIR_DENSITY = 1200.0
 """[g/m³]: 1.2 kg/m³ in the simulation's mass unit (see the module)"""
@@ -100,7 +100,7 @@ def _corner_force(e1, e2, u, drag, lift, scale):
     nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
     n2 = nx * nx + ny * ny + nz * nz
     ok = n2 > 0.0
-    inv_n = inv_length(n2)
+    inv_n = over_length(1.0, n2)
     area = 0.5 * n2 * inv_n
     nx, ny, nz = nx * inv_n, ny * inv_n, nz * inv_n
     un = ux * nx + uy * ny + uz * nz
