@@ -34,9 +34,9 @@ DIVIDE = not has_compress()
 ``CLOTHSIM_NO_AVX512`` set) rather than multiplying by :func:`inv_length`. On a
 Zen 3 core the estimate's conversions and two refining steps keep the
 multiply units busy, while the square root and the divide run in a unit of
-their own beside them: the spring force loop took 8-15% less time, exact to
-the last bit. With AVX-512 the estimate stays, as measured there (figures:
-docs/performance.md, 'The inverse length on Zen 3')."""
+their own beside them: the spring force loop takes less time, and is exact
+to the last bit. With AVX-512 the estimate stays, as chosen there (figures:
+docs/performance.md, 'The inverse length as a square root and a divide')."""
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
