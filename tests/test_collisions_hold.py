@@ -71,12 +71,15 @@ def test_sphere_json_at_its_own_substeps_keeps_the_course_result():
     """at its own 30 substeps sphere.json moves no point far enough, nor leaves one
     deep enough, for the segment rule or the settle to act: its result is the
     course rule's. The figures are those of the solver before the rule (serial
-    path); the deepest point stays under a quarter of SPHERE_SETTLE."""
+    path); the deepest point stays under a quarter of SPHERE_SETTLE. The mean
+    height's tolerance takes in the two ways the springs divide by their length
+    (:data:`clothsim.solver.shared.DIVIDE`), 2.3e-9 of it apart after 2 s; the
+    rule or the settle moving a single point by 2.5 µm would move it by 1e-8."""
     sim = Simulation.from_file(SCENES / "sphere.json", threads=1)
     deepest = deepest_at_frame_ends(sim, 2.0)
     assert deepest < SPHERE_SETTLE / 4
     assert deepest == pytest.approx(0.00013048158322209735, rel=1e-9)
-    assert sim.positions[:, 1].mean() == pytest.approx(0.09850384520152307, rel=1e-9)
+    assert sim.positions[:, 1].mean() == pytest.approx(0.09850384520152307, rel=1e-8)
 
 
 def planes(rows):
