@@ -22,8 +22,14 @@ def machine() -> dict:
     import numpy
 
     import clothsim
+    from clothsim.solver.shared import DIVIDE
+    from clothsim.solver.simd import has_compress
 
-    return {"cpu": cpu, "python": platform.python_version(), "numpy": numpy.__version__,
+    # the CPU's name does not say which code the kernels were compiled to: two
+    # "AMD EPYC" machines here differ in AVX-512, and the springs in how they
+    # take a length's inverse (docs/performance.md)
+    return {"cpu": cpu, "avx512_code": has_compress(), "inverse_length": "divide" if DIVIDE else "estimate",
+            "python": platform.python_version(), "numpy": numpy.__version__,
             "numba": numba.__version__, "clothsim": clothsim.__version__}
 
 
