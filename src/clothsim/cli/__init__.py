@@ -16,15 +16,14 @@ every :class:`~clothsim.errors.SceneWarning` one line
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
 import warnings
 from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import ClothsimError, SceneWarning, UsageError
 from . import render, scenes, simulate, sweep, view
+from .stopping import EXIT_CODES, Terminated, handling_stops, stopped_by
 
 SUBCOMMANDS = (simulate, render, sweep, view, scenes)
 """in the order ``--help`` lists them"""
@@ -64,31 +63,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-class Terminated(BaseException):
-    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt, so that
-    every output being written is removed on the way out."""
-
-
-def _terminate(signum, frame) -> None:
-    raise Terminated()
-
-
-EXIT_CODES = {KeyboardInterrupt: 130, Terminated: 143}
-"""the shell's codes for a run stopped by SIGINT (Ctrl-C) and by SIGTERM"""
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     try:  # a value parser and Parser.error raise UsageError: one line, like every other error
         args = build_parser().parse_args(argv)
     except ClothsimError as exc:
         print(error_line(exc), file=sys.stderr)
         return 2
-    previous = signal.getsignal(signal.SIGTERM)
-    in_main = threading.current_thread() is threading.main_thread()
-    if in_main:
-        signal.signal(signal.SIGTERM, _terminate)
     try:
-        with warnings.catch_warnings():  # restores the filters and showwarning on the way out
+        with handling_stops(), warnings.catch_warnings():  # restores the filters and showwarning on the way out
             warnings.simplefilter("always", SceneWarning)
             warnings.showwarning = _one_line(warnings.showwarning)
             return args.func(args)
@@ -96,16 +78,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(error_line(exc), file=sys.stderr)
         return 2
     except (KeyboardInterrupt, Terminated, SystemError) as exc:
-        # an interrupt that lands while numba loads or calls compiled code comes
-        # back as a SystemError whose cause is the interrupt
-        stop = _stopped_by(exc)
+        stop = stopped_by(exc)
         if stop is None:
             raise
         print("clothsim: interrupted", file=sys.stderr)
         return EXIT_CODES[stop]
-    finally:
-        if in_main:
-            signal.signal(signal.SIGTERM, previous)
 
 
 def _one_line(show):
@@ -128,18 +105,6 @@ def printable(text: str) -> str:
 def error_line(exc: BaseException) -> str:
     """``clothsim: error: MESSAGE`` on one line (see :func:`printable`)."""
     return f"clothsim: error: {printable(str(exc))}"
-
-
-def _stopped_by(exc: BaseException | None) -> type | None:
-    """KeyboardInterrupt or Terminated where ``exc`` is one or was caused by one, else None."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        for kind in EXIT_CODES:
-            if isinstance(exc, kind):
-                return kind
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
 
 
 __all__ = ["build_parser", "main"]
