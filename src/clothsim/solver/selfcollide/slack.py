@@ -37,6 +37,11 @@ that the others go on while one run's count waits on its last store: of 1,
 'Slack sort')"""
 
 
+PAD_ROWS = -(-16 // SLACK_BUCKETS)
+"""rows of counters (int64) between two parts' blocks in :func:`sort_by_slack`:
+at least 128 bytes"""
+
+
 @njit(**EXACT_OPTIONS, inline="always")
 def sort_by_slack(pairs, labels, listed, meta, parts):
     """The list's first ``listed`` pairs ordered by their ``labels`` (slack buckets),
@@ -59,23 +64,24 @@ def sort_by_slack(pairs, labels, listed, meta, parts):
     are inlined here, where ``out`` is allocated: compiled apart, each store
     into ``out`` might have changed a counter, which was then read again.
     """
-    runs = parts * SORT_LANES
-    at = np.zeros((runs, SLACK_BUCKETS), dtype=np.int64)
+    # a block of counter rows per part, apart from the next by a row of padding
+    at = np.zeros((parts, SORT_LANES + PAD_ROWS, SLACK_BUCKETS), dtype=np.int64)
     for t in prange(parts):
         lo, hi = part_range(listed, parts, t)
-        _count_runs(labels, lo, hi, at[t * SORT_LANES:(t + 1) * SORT_LANES])
+        _count_runs(labels, lo, hi, at[t])
     # run r's pairs of bucket j go after bucket j's pairs of the runs before it
     total = 0
     for j in range(SLACK_BUCKETS):
-        for r in range(runs):
-            c = at[r, j]
-            at[r, j] = total
-            total += c
+        for t in range(parts):
+            for r in range(SORT_LANES):
+                c = at[t, r, j]
+                at[t, r, j] = total
+                total += c
         meta[BUCKET + j] = total
     out = np.empty_like(pairs)
     for t in prange(parts):
         lo, hi = part_range(listed, parts, t)
-        _place_runs(pairs, labels, lo, hi, at[t * SORT_LANES:(t + 1) * SORT_LANES], out)
+        _place_runs(pairs, labels, lo, hi, at[t], out)
     return out
 
 
