@@ -663,7 +663,11 @@ def test_touching_bucket_that_drifts_apart_pushes_only_the_pairs_still_touching(
     x, hits = collide_in_place(planes(pos), rest, free, 0.02, 3, x)
     assert hits == pairs and x.meta[BUCKET] == pairs and x.rebuilds == 1
     moved = pos.copy()
-    drifted = np.arange(pairs) % each >= SPARSE_PAIRS  # the last 8 of each part's pairs
+    # the last 8 pairs of each part's share of the list, in the list's order
+    listed = x.pairs[:, :pairs].min(axis=0) // 2  # the pair each entry is
+    drifted = np.zeros(pairs, dtype=bool)
+    for t in range(parts):
+        drifted[listed[(t + 1) * each - 8:(t + 1) * each]] = True
     moved[2 * np.flatnonzero(drifted) + 1, 0] += 0.011  # past the reach, within the skin
     expected, hits = reference_self_collision(moved, rest, free, 0.04, 3)
     assert hits == SPARSE_PAIRS * parts
@@ -770,8 +774,8 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
 def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
     """the pass right after a build orders the list by how far past the reach each
     pair was: the touching pairs first, then buckets of slack, each in the build's
-    order, with their ends noted; every pair of the build stays, and later passes
-    leave the order be"""
+    order (part by part), with their ends noted; every pair of the build stays,
+    and later passes leave the order be"""
     m, near, pos = folded_cloth(40, 0.75, 0.9)
     reach = 2 * m.thickness
     x = NeighbourList.allocate(m.num_points, 40, near, parts, skin=0.75)
@@ -793,8 +797,15 @@ def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
     order = {p: k for k, p in enumerate(map(tuple, fresh[:, :built].T.tolist()))}
     rank = np.array([order[p] for p in map(tuple, pairs.T.tolist())])
     assert len(set(rank.tolist())) == built  # the same pairs, each once
-    for j in range(SLACK_BUCKETS):  # in the build's order within a bucket
-        assert np.all(np.diff(rank[bucket == j]) > 0)
+    # within a bucket, each part's pairs in the build's order: the build deals its
+    # shares of the points out to the parts in turn, and a pair is its first end's
+    shares = x.tally.shape[0]
+    share = (pairs[0].astype(np.int64) * shares + shares - 1) // m.num_points  # inverse of part_range
+    assert np.all(share * m.num_points // shares <= pairs[0])
+    assert np.all(pairs[0] < (share + 1) * m.num_points // shares)
+    key = (share % parts) * (built + 1) + rank
+    for j in range(SLACK_BUCKETS):
+        assert np.all(np.diff(key[bucket == j]) > 0)
     P = planes(pos)
     x, _ = collide_in_place(P, m.rest_positions, free, m.thickness, 10 ** 9, x)  # the list holds
     assert x.rebuilds == 1

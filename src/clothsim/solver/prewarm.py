@@ -82,7 +82,7 @@ def calls(variant: str) -> list:
     from .wind import blow, blow_grid, wind_buffer
     from .groups import Knobs, Points, Scratch
     from .selfcollide import NeighbourList
-    from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs
+    from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs, _even_segments, _share_segments
     from .selfcollide.drift import _to_single, drift_bound
     from .selfcollide.nearstencil import near_pushes
     from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
@@ -128,6 +128,8 @@ def calls(variant: str) -> list:
             (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
             (_copy, (lists.pos32[:, :n], lists.reference)),
             (_close_up, (lists.pairs, lists.tally, zero)),
+            (_share_segments, (lists.tally, zero)),
+            (_even_segments, (zero, np.int64(1))),
             (_append, (lists.near_pairs, lists.pairs, zero)),
             (_copy_pairs, (lists.pairs, lists.pairs, zero)),
             (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),

@@ -69,6 +69,7 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     bound = np.inf if meta[VALID] == 0 else drift_bound(pos32, reference, skin, centres,
                                                          extent + frame[3])
     fresh = not bound < skin
+    span2 = (reach + skin) ** 2 - reach * reach
     if fresh:
         radius = reach + skin
         grid = sort_into_cells(P, radius, span, lists)
@@ -95,15 +96,34 @@ def self_collide(P, points, simulation_steps, lists, pairs):
                 break
             size = 2 * most
             pairs = np.empty((2, shares * size), dtype=np.int32)
-        listed = _close_up(pairs, tally, size)
         if near.shape[1] > 0:  # a mesh's near list, which the build dropped (see nearlist)
+            listed = _close_up(pairs, tally, size)
             if listed + near.shape[1] > pairs.shape[1]:
                 grown = np.empty((2, listed + near.shape[1] + n), dtype=np.int32)
                 _copy_pairs(pairs, grown, listed)
                 pairs = grown
             _append(near, pairs, listed)
             listed += near.shape[1]
+            segments = _even_segments(listed, parts)
+        else:
+            # the shares' pairs stay where each share wrote them: the labels and
+            # the sort below read them there, and the sort packs them
+            segments = _share_segments(tally, size)
+            listed = 0
+            for j in range(shares):
+                listed += tally[j, 0]
         meta[PAIRS] = listed
+        # the new list labelled and sorted by slack (a pass of its own, with no
+        # branch: in one with the pushes, as it was, it made the substep of a
+        # build slower). Slack is measured in squared distance past the reach's
+        # square (no square root per pair), in steps of the span up to the list
+        # radius's square
+        labels = np.empty(pairs.shape[1], dtype=np.int8)
+        for t in prange(parts):
+            for i in range(t, segments.shape[0], parts):
+                k0 = segments[i, 0]
+                label_pairs(P, reach, pairs, k0, k0 + segments[i, 1], labels, (SLACK_BUCKETS - 1) / span2)
+        pairs = sort_by_slack(pairs, labels, segments, meta, parts)
         for c in range(3):
             frame[c] = P[c, 0]
         extent = single_copy(P, frame, pos32, extent32)
@@ -114,21 +134,9 @@ def self_collide(P, points, simulation_steps, lists, pairs):
         meta[REBUILDS] += 1
     if meta[VALID] == 0:
         return pairs, 0
-    listed = meta[PAIRS]
-    # a new list is labelled and sorted by slack (a pass of its own, with no
-    # branch: in one with the pushes, as it was, it made the substep of a
-    # build slower); every substep then checks the pairs whose slack
-    # the drift bound reaches, on the substep of a build the touching ones.
-    # Slack is measured in squared distance past the reach's square (no square
-    # root per pair), in steps of the span up to the list radius's square
-    span2 = (reach + skin) ** 2 - reach * reach
+    # every substep checks the pairs whose slack the drift bound reaches, on
+    # the substep of a build the touching ones
     reachable = ((reach + bound) ** 2 - reach * reach) * (1.0 + 1e-6) / span2
-    if fresh:
-        labels = np.empty(listed, dtype=np.int8)
-        for t in prange(parts):
-            k0, k1 = part_range(listed, parts, t)
-            label_pairs(P, reach, pairs, k0, k1, labels, (SLACK_BUCKETS - 1) / span2)
-        pairs = sort_by_slack(pairs, labels, listed, meta, parts)
     # bucket 0, the pairs that touched at the build, is pushed without a branch
     # per pair: those pairs hover about the reach, and the branch on whether
     # one touches was mispredicted about as often as not
@@ -156,6 +164,29 @@ def self_collide(P, points, simulation_steps, lists, pairs):
                 lo, hi = part_range(n, parts, t)
                 apply_pushes(P, push, count, free, inv_steps, lo, hi)
     return pairs, hits
+
+
+@njit(cache=True)
+def _share_segments(tally, size):
+    """(start, count) of each share's pairs, int64 (shares, 2): share j wrote
+    ``tally[j, 0]`` pairs from ``j * size``."""
+    shares = tally.shape[0]
+    out = np.empty((shares, 2), dtype=np.int64)
+    for j in range(shares):
+        out[j, 0] = j * size
+        out[j, 1] = tally[j, 0]
+    return out
+
+
+@njit(cache=True)
+def _even_segments(listed, parts):
+    """``listed`` pairs from the front cut evenly into ``parts`` segments, (parts, 2)."""
+    out = np.empty((parts, 2), dtype=np.int64)
+    for t in range(parts):
+        lo, hi = part_range(listed, parts, t)
+        out[t, 0] = lo
+        out[t, 1] = hi - lo
+    return out
 
 
 @njit(**EXACT_OPTIONS)

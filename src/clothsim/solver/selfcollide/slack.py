@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..shared import EXACT_OPTIONS, gap2, part_range
+from ..shared import EXACT_OPTIONS, gap2
 from .buffers import BUCKET, SLACK_BUCKETS
 
 @njit(**EXACT_OPTIONS)
@@ -38,16 +38,21 @@ that the others go on while one run's count waits on its last store: of 1,
 
 
 PAD_ROWS = -(-16 // SLACK_BUCKETS)
-"""rows of counters (int64) between two parts' blocks in :func:`sort_by_slack`:
+"""rows of counters (int64) between two segments' blocks in :func:`sort_by_slack`:
 at least 128 bytes"""
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def sort_by_slack(pairs, labels, listed, meta, parts):
-    """The list's first ``listed`` pairs ordered by their ``labels`` (slack buckets),
-    keeping the order within a bucket, in a new array as large as ``pairs``
-    (copying them back would be a pass more); where each bucket ends goes
-    into ``meta[BUCKET:]``.
+def sort_by_slack(pairs, labels, segments, meta, parts):
+    """The listed pairs ordered by their ``labels`` (slack buckets), keeping the
+    order within a bucket, packed from the front of a new array as large as
+    ``pairs`` (copying them back would be a pass more); where each bucket
+    ends goes into ``meta[BUCKET:]``. The pairs lie in ``segments``, int64
+    (S, 2) rows (start, count) in ``pairs`` and ``labels``, with gaps between
+    them: each share of the list build wrote its own, and the sort gathers
+    them, so they are not first moved together into one run (a pass over
+    the list, on one thread). Segment i is part ``i % parts``'s, as the
+    build dealt out its shares, so each part sorts what it found.
 
     A pair of the list started ``slack`` past the reach, and it cannot touch
     before two points have come closer by that much; :func:`drift_bound`
@@ -58,30 +63,35 @@ def sort_by_slack(pairs, labels, listed, meta, parts):
     allocated here, as the list may have grown.
 
     A counting sort cut into ``parts`` (``prange`` where inlined into
-    parallel code), each walking SORT_LANES runs of its range side by side
+    parallel code), each walking SORT_LANES runs of each of its segments side by side
     with a counter row per run: a single run's next count or place waits on
     the store of its last whenever two labels in a row are alike. Its loops
     are inlined here, where ``out`` is allocated: compiled apart, each store
     into ``out`` might have changed a counter, which was then read again.
     """
-    # a block of counter rows per part, apart from the next by a row of padding
-    at = np.zeros((parts, SORT_LANES + PAD_ROWS, SLACK_BUCKETS), dtype=np.int64)
+    # a block of counter rows per segment, apart from the next by a row of padding
+    segs = segments.shape[0]
+    at = np.zeros((segs, SORT_LANES + PAD_ROWS, SLACK_BUCKETS), dtype=np.int64)
     for t in prange(parts):
-        lo, hi = part_range(listed, parts, t)
-        _count_runs(labels, lo, hi, at[t])
-    # run r's pairs of bucket j go after bucket j's pairs of the runs before it
+        for i in range(t, segs, parts):
+            lo = segments[i, 0]
+            _count_runs(labels, lo, lo + segments[i, 1], at[i])
+    # a run's pairs of bucket j go after bucket j's pairs of the runs before it:
+    # part by part, each part's segments in turn, their runs in turn
     total = 0
     for j in range(SLACK_BUCKETS):
         for t in range(parts):
-            for r in range(SORT_LANES):
-                c = at[t, r, j]
-                at[t, r, j] = total
-                total += c
+            for i in range(t, segs, parts):
+                for r in range(SORT_LANES):
+                    c = at[i, r, j]
+                    at[i, r, j] = total
+                    total += c
         meta[BUCKET + j] = total
     out = np.empty_like(pairs)
     for t in prange(parts):
-        lo, hi = part_range(listed, parts, t)
-        _place_runs(pairs, labels, lo, hi, at[t], out)
+        for i in range(t, segs, parts):
+            lo = segments[i, 0]
+            _place_runs(pairs, labels, lo, lo + segments[i, 1], at[i], out)
     return out
 
 
