@@ -34,19 +34,18 @@ class Page:
     def __init__(self, chromium: str, flags: list[str], url: str, profile: Path, timeout: float = 60.0):
         self.timeout = timeout
         to_browser, from_browser = os.pipe(), os.pipe()
-        # the child's ends moved above 3 and 4 first, so that putting them at 3 and 4 cannot clobber each other
+        # the child's ends moved above 4 first, so that putting them at 3 and 4 cannot clobber each other
         child_in = fcntl.fcntl(to_browser[0], fcntl.F_DUPFD, 10)
         child_out = fcntl.fcntl(from_browser[1], fcntl.F_DUPFD, 10)
         for fd in (to_browser[0], from_browser[1]):
             os.close(fd)
-
-        def at_3_and_4():
-            os.dup2(child_in, 3)
-            os.dup2(child_out, 4)
-
+        # bash puts them at 3 and 4 and becomes chromium: no Python runs between fork and exec
+        # (a preexec_fn would), and dash takes no descriptor above 9
+        moves = f"3<&{child_in} 4>&{child_out} {child_in}<&- {child_out}>&-"
         self.process = subprocess.Popen(
-            [chromium, *flags, f"--user-data-dir={profile}", "--remote-debugging-pipe", url],
-            preexec_fn=at_3_and_4, pass_fds=(3, 4), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            ["bash", "-c", f'exec "$@" {moves}', "bash", chromium, *flags, f"--user-data-dir={profile}",
+             "--remote-debugging-pipe", url],
+            pass_fds=(child_in, child_out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         os.close(child_in)
         os.close(child_out)
         self._write, self._read = to_browser[1], from_browser[0]
