@@ -51,8 +51,15 @@ class Page:
         self._write, self._read = to_browser[1], from_browser[0]
         self._buffer, self._id, self.session = b"", 0, None
         try:
-            targets = self.call("Target.getTargets")["targetInfos"]
-            page = next(t for t in targets if t["type"] == "page")
+            deadline = time.monotonic() + timeout
+            while True:  # the page's target may come a moment after the browser answers
+                pages = [t for t in self.call("Target.getTargets")["targetInfos"] if t["type"] == "page"]
+                if pages or time.monotonic() > deadline:
+                    break
+                time.sleep(0.05)
+            if not pages:
+                raise BrowserError(f"no page for {url} in {timeout} s")
+            page = pages[0]
             self.session = self.call("Target.attachToTarget", {"targetId": page["targetId"],
                                                                "flatten": True})["sessionId"]
         except BaseException:
