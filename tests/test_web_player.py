@@ -237,15 +237,19 @@ BROWSER_FLAGS = [
     "--disable-sync", "--disable-extensions", "--disable-default-apps", "--no-first-run",
     "--no-default-browser-check", "--mute-audio", "--hide-scrollbars",
     "--window-size=800,600",
-    # virtual time: the page's decoding and its first frames finish before the screenshot
-    "--virtual-time-budget=8000",
 ]
 
+VIRTUAL_TIME = "--virtual-time-budget=8000"
+"""for a page read once it has loaded: its decoding and first drawing finish before
+the dump or the screenshot (animation frames do not follow it: see tests/browser.py)"""
 
-def browse(url: str, tmp_path: Path, *action: str, budget_ms: int = 8000) -> subprocess.CompletedProcess:
-    profile = tmp_path / f"profile-{len(list(tmp_path.glob('profile-*')))}"
-    flags = [f for f in BROWSER_FLAGS if not f.startswith("--virtual-time-budget=")]
-    return subprocess.run([CHROMIUM, *flags, f"--virtual-time-budget={budget_ms}", f"--user-data-dir={profile}",
+
+def new_profile(tmp_path: Path) -> Path:
+    return tmp_path / f"profile-{len(list(tmp_path.glob('profile-*')))}"
+
+
+def browse(url: str, tmp_path: Path, *action: str) -> subprocess.CompletedProcess:
+    return subprocess.run([CHROMIUM, *BROWSER_FLAGS, VIRTUAL_TIME, f"--user-data-dir={new_profile(tmp_path)}",
                            *action, url], capture_output=True, text=True, timeout=180, cwd=tmp_path)
 
 
@@ -289,9 +293,7 @@ LOADED = "/^(ready|error)/.test(document.documentElement.dataset.state || '')"
 
 def open_page(page: Path, fragment: str, tmp_path: Path) -> Page:
     """the page in chromium, running in real time, for questions through the DevTools protocol"""
-    flags = [f for f in BROWSER_FLAGS if not f.startswith("--virtual-time-budget=")]
-    profile = tmp_path / f"profile-{len(list(tmp_path.glob('profile-*')))}"
-    return Page(CHROMIUM, flags, f"{page.as_uri()}{fragment}", profile)
+    return Page(CHROMIUM, BROWSER_FLAGS, f"{page.as_uri()}{fragment}", new_profile(tmp_path))
 
 
 @needs_chromium
