@@ -109,7 +109,9 @@ def self_collide(P, points, simulation_steps, lists, pairs):
             # the shares' pairs stay where each share wrote them: the labels and
             # the sort below read them there, and the sort packs them
             segments = _share_segments(tally, size)
-            listed = segments[:, 1].sum()
+            listed = 0  # a loop: numba's array sum compiles helpers of its own in every process
+            for j in range(shares):
+                listed += tally[j, 0]
         meta[PAIRS] = listed
         # the new list labelled and sorted by slack (a pass of its own, with no
         # branch: in one with the pushes, as it was, it made the substep of a
