@@ -6,7 +6,7 @@ a few millimetres off its surface and falls a little this substep, some
 through it; beyond the ball's rim the cloth hangs down past its side. The
 ball is closed and static. Prints one JSON line: the CPU, the microseconds
 of one :func:`collide_meshes` call over all points (best of several repeats of
-many calls, each on fresh copies of the positions) and the triangles tested
+many calls, each on the same positions copied in just before it) and the triangles tested
 per point, with the time :func:`pack_meshes` takes.
 
 That cloth keeps no hints (each point's last crossed triangle, whose clear
@@ -110,7 +110,7 @@ def substep_us(sim: Simulation, frames: int) -> float:
 
 class Drape:
     """A 50x50 cloth draped on a mesh ball as a run leaves it, and its next substep's
-    collider and settle passes, each callable on fresh copies, with or without hints."""
+    collider and settle passes, each timed from the same positions, with or without hints."""
 
     def __init__(self, subdivisions: int, folder: Path):
         scene = json.loads(scene_path("sphere").read_text())
@@ -142,19 +142,43 @@ class Drape:
     def time(self, settle: bool, hints: bool, calls: int, call_only: bool = False) -> float:
         """seconds per call of one pass over all points (``call_only``: of the call alone,
         with a control of no poses, which returns at once: what calling the kernel
-        from Python costs, which a substep's compiled call does not pay)"""
+        from Python costs, which a substep's compiled call does not pay), each from the
+        same positions and hints (:func:`warm_calls`)"""
         start = self.after if settle else self.before
-        copies = [start.copy() for _ in range(calls)]
-        ctls = [self.ctl._replace(mesh_hints=self.hints.copy()) if hints else self.none for _ in range(calls)]
+        ctl = self.ctl._replace(mesh_hints=self.hints.copy()) if hints else self.none
         if call_only:
-            ctls = [c._replace(meshes=c.meshes[:0]) for c in ctls]
-        t = time.perf_counter()
-        for P, ctl in zip(copies, ctls):
-            if settle:
+            ctl = ctl._replace(meshes=ctl.meshes[:0])
+        if settle:
+            def call(P):
                 settle_meshes(P, self.Q, self.free, ctl, *self.span)
-            else:
+        else:
+            def call(P):
                 collide_meshes(P, self.L, self.free, ctl, *self.span)
-        return (time.perf_counter() - t) / calls
+        return warm_calls(call, start, calls, (ctl.mesh_hints, self.hints) if hints else None)
+
+
+def warm_calls(call, start: np.ndarray, calls: int, hints=None) -> float:
+    """Seconds per ``call(P)``, each on positions ``start`` copied into one array P just
+    before it (and ``hints``, a pair (the control's array, its first values), copied
+    back too), so that the pass finds them in the cache as a substep does: its
+    springs and Verlet step have just written them. The copies are timed alone and
+    taken off. (Calls on a fresh copy each, made ahead, read every position from
+    the L3 cache or memory: on the Xeon of docs/performance.md that added some 6 us
+    to the draped cloth's two passes.)"""
+    P = start.copy()
+    kept, first = hints if hints is not None else (np.zeros(0), np.zeros(0))
+
+    def copies(with_call: bool) -> float:
+        t = time.perf_counter()
+        for _ in range(calls):
+            np.copyto(P, start)
+            np.copyto(kept, first)
+            if with_call:
+                call(P)
+        return time.perf_counter() - t
+
+    alone = copies(False)
+    return max(copies(True) - alone, 0.0) / calls
 
 
 DRAPE_CASES = {"drape_collide_us": (False, True, False), "drape_collide_no_hints_us": (False, False, False),
@@ -180,25 +204,22 @@ def main() -> None:
     L, P0 = draped()
     free = np.ones(P0.shape[1])
     lo, hi, s = np.int64(0), np.int64(P0.shape[1]), np.int64(0)
-    copies = [P0.copy() for _ in range(args.calls)]
-    collide_meshes(copies[0], L, free, ctl, lo, hi, s)  # compiles
+    collide_meshes(P0.copy(), L, free, ctl, lo, hi, s)  # compiles
     cloth, bare = bare_cloth(True), bare_cloth(False)
     drape = Drape(args.subdivisions, Path(tempfile.mkdtemp()))
     drape_s = dict.fromkeys(DRAPE_CASES, np.inf)
     best, cloth_us, bare_us = np.inf, np.inf, np.inf
     for _ in range(args.repeats):
-        copies = [P0.copy() for _ in range(args.calls)]
-        t = time.perf_counter()
-        for P in copies:
-            collide_meshes(P, L, free, ctl, lo, hi, s)
-        best = min(best, (time.perf_counter() - t) / args.calls)
+        best = min(best, warm_calls(lambda P: collide_meshes(P, L, free, ctl, lo, hi, s), P0, args.calls))
         for name, (settle, hints, call_only) in DRAPE_CASES.items():
             drape_s[name] = min(drape_s[name], drape.time(settle, hints, args.calls, call_only))
         cloth_us = min(cloth_us, substep_us(cloth, args.frames))
         bare_us = min(bare_us, substep_us(bare, args.frames))
     tested = np.zeros(P0.shape[1], dtype=np.int64)
     count_tests(P0, L, free, ctl, lo, hi, s, tested)
-    moved = int(np.any(copies[0] != P0, axis=0).sum())
+    P = P0.copy()
+    collide_meshes(P, L, free, ctl, lo, hi, s)
+    moved = int(np.any(P != P0, axis=0).sum())
     g = packed["mesh_grid"][0]
     emit({"bench": "mesh_collider", **machine(), "points": int(P0.shape[1]), "triangles": int(len(ball.faces)),
           "grid_dims": [int(v) for v in g[5:8]], "cell_m": round(float(g[3]), 5),
