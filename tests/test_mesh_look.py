@@ -1,6 +1,8 @@
 """The mesh kernels' first pass (solver/colliders/meshlook.py): the settle pass's
 look at the points a later pass moved, one by one, flags and lists the same
-points as the vector pass over every point."""
+points as the vector pass over every point (where no point has a hint; the
+points with one it lists as they are, for the hint pass: test_mesh_prisms.py
+checks that the outcome is the same)."""
 
 from __future__ import annotations
 
@@ -43,11 +45,13 @@ def both(ctl_fields, pose, P, Q, free):
     reach = _reach(g)
     now = frame(pose, 0)
     limits = (reach, g[G_H] - 2.0 * reach, False, True)
+    no_hints = (np.full((1, 0), -1, dtype=np.int32), 0, 0, len(ctl_fields["mesh_tris"]), 0)
     out = []
     for kernel in (look, look_settle):
         need = np.ones(P.shape[1], dtype=np.bool_)
         listed = np.full(P.shape[1], -1, dtype=np.int64)
-        count = kernel(P, Q, free, np.int64(0), (now, now), G, limits, ctl_fields["mesh_items"], need, listed)
+        args = (P, Q, free, np.int64(0), (now, now), G, limits, ctl_fields["mesh_items"], need, listed)
+        count = kernel(*args, no_hints) if kernel is look_settle else kernel(*args)
         out.append((count, need, listed[:count]))
     return out
 

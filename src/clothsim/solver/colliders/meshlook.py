@@ -155,11 +155,13 @@ def _moved(here, moving):
 
 
 @njit(**EXACT_OPTIONS)
-def look_settle(P, L, free, lo, frames, G, limits, items, need, listed):
+def look_settle(P, L, free, lo, frames, G, limits, items, need, listed, known):
     """:func:`look` where ``moved`` (the settle pass: ``L`` the positions before a later
     pass, which most points left where they were): where at most one point in
     FEW_MOVED moved, :func:`_look_moved` flags those alone, with the same
-    outcome."""
+    outcome, and lists at once those that ``known`` gives a hint. ``known``: (hints
+    (K, M) int32, the mesh's row k in it, the first and end rows of its triangles,
+    the points below which keep hints); the hints of :func:`.meshhint.hint_pass`."""
     before, now = frames
     reach, short, closed, moved = limits
     ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, _, s0f, _ = G
@@ -172,20 +174,29 @@ def look_settle(P, L, free, lo, frames, G, limits, items, need, listed):
         return look(P, L, free, lo, frames, G, limits, items, need, listed)
     plain = is_rest(before) and is_rest(now)
     bounds = (reach, short, moved, ox, oy, oz, hx, hy, hz, inv, nx, ny, nz, np.int32(nx), np.int32(ny))
+    hints, k, first, last, hinted = known
+    kept = min(max(hinted - lo, 0), n, hints.shape[1] - lo) if 0 <= k < hints.shape[0] else 0
     cell = np.empty(n, dtype=np.int32)
-    return _look_moved(frames, plain, here, bounds, (items, int(s0f), closed), moving, need, cell, listed)
+    return _look_moved(frames, plain, here, bounds, (items, int(s0f), closed), moving, need, cell, listed,
+                       (hints, k, lo, first, last, kept))
 
 
 @njit(**EXACT_OPTIONS)
-def _look_moved(frames, plain, here, bounds, status, moving, need, cell, listed):
+def _look_moved(frames, plain, here, bounds, status, moving, need, cell, listed, known):
     """:func:`look` for the points that ``moving`` marks, the only ones whose ``need``
     can be set where ``moved``: each flagged alone, eight marks read at once, so that
     a settle pass after which few points moved reads the rest once (a vector loop
     over every point's tests took four times as long). The same flags, list and
-    count as :func:`look`'s loops."""
+    count as :func:`look`'s loops, but for the points with a hint in ``known``
+    ((hints, k, lo, first, end, the points from lo that keep them)), listed as they
+    are: the hint pass decides most of them, with the search's answer (a point
+    this pass would not list meets no triangle, and its segment is not the search's
+    to move), and the search's own first tests, made again for the rest, are
+    these."""
     before, now = frames
     lx, ly, lz, px, py, pz, _ = here
     items, s0, closed = status
+    hints, k, lo, first, last, kept = known
     need[:] = False
     words = moving.view(np.uint64)
     count = 0
@@ -194,6 +205,11 @@ def _look_moved(frames, plain, here, bounds, status, moving, need, cell, listed)
         while bits:
             b, bits = pop_lowest(bits)
             q = w * 8 + b // 8  # each mark is one byte, 0 or 1
+            listed[count] = q
+            if q < kept and first <= hints[k, lo + q] < last:
+                need[q] = True
+                count += 1
+                continue
             if plain:
                 segment = (lx[q], ly[q], lz[q], px[q], py[q], pz[q])
             else:
@@ -202,7 +218,6 @@ def _look_moved(frames, plain, here, bounds, status, moving, need, cell, listed)
                 segment = (x0, y0, z0, x1, y1, z1)
             _flag(q, segment, here, bounds, need, cell)
             need[q] = _busy(q, items, s0, closed, need, cell)
-            listed[count] = q
             count += np.int64(need[q])
     return count
 
