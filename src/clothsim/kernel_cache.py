@@ -138,8 +138,14 @@ def _base(user_dir: str) -> tuple[Path, str] | None:
 def configure() -> Path | None:
     """Point numba's cache at the folder keyed on the kernel sources (see the
     module's docstring) and return it; None where it cannot be made, numba's
-    own choice then standing. Call before any clothsim kernel is decorated."""
+    own choice then standing. Call before any clothsim kernel is decorated.
+    Also asks numba for 512-bit vectors where the CPU has AVX-512
+    (:func:`clothsim.vector_width.widen`), before anything compiles."""
     import numba
+
+    from .vector_width import widen
+
+    widen()
 
     if "original" not in _configured:
         original = numba.config.CACHE_DIR or ""
@@ -223,10 +229,9 @@ def _marker(variant: str) -> Path | None:
     import numba
 
     name = numba.config.CPU_NAME
-    if name and name != "host":
-        cpu = f"{name};{numba.config.CPU_FEATURES or ''}"
-    else:
-        cpu = f"{llvm.get_host_cpu_name()};{llvm.get_host_cpu_features().flatten()}"
+    if not name or name == "host":
+        name = llvm.get_host_cpu_name()
+    cpu = f"{name};{numba.config.CPU_FEATURES or llvm.get_host_cpu_features().flatten()}"
     return path / f"warm-{variant}-{hashlib.sha256(cpu.encode()).hexdigest()[:8]}"
 
 

@@ -1,0 +1,57 @@
+"""How wide the kernels' vectors are: the whole of AVX-512's 512 bits, where the CPU has it.
+
+On a CPU with AVX-512, LLVM still vectorises loops 256 bits at a time (four
+doubles, eight floats) unless told otherwise: its Intel CPU models carry the
+``prefer-256-bit`` tuning, chosen for the first AVX-512 chips, which lowered
+their clock for 512-bit work. numba compiles with the host's model and
+features, so clothsim's loops ran at half the width the machine offers.
+:func:`widen` asks for 512-bit vectors by adding ``-prefer-256-bit`` to the
+features numba compiles for (``numba.config.CPU_FEATURES``), which numba
+reads once, when it first compiles anything in the process; its cache keys
+every entry on those features, so kernels of either width never mix. The
+gain is measured in docs/performance.md.
+
+It is left alone where the user chose the target (``NUMBA_CPU_NAME`` or
+``NUMBA_CPU_FEATURES`` set), where the CPU lacks AVX-512F, and where
+``CLOTHSIM_VECTOR_BITS=256`` asks for LLVM's default. This module imports
+numba only when :func:`widen` is called.
+"""
+
+from __future__ import annotations
+
+import os
+
+NARROW = "CLOTHSIM_VECTOR_BITS"
+"""the environment variable that keeps LLVM's 256-bit vectors when set to 256"""
+
+WIDE_FEATURE = "-prefer-256-bit"
+"""the LLVM feature added to the host's: vectors of the full 512 bits"""
+
+
+def wide_features(host: str, environ=None) -> str | None:
+    """The feature string numba should compile for, given the host's (``host``, as
+    llvmlite flattens it) and the environment (``os.environ`` by default); None
+    where the host's features stand (see the module's docstring)."""
+    environ = os.environ if environ is None else environ
+    if environ.get(NARROW, "").strip() == "256":
+        return None
+    if environ.get("NUMBA_CPU_NAME") or environ.get("NUMBA_CPU_FEATURES"):
+        return None
+    features = host.split(",")
+    if "+avx512f" not in features or WIDE_FEATURE in features:
+        return None
+    return ",".join(features + [WIDE_FEATURE])
+
+
+def widen() -> bool:
+    """Set numba's compile features to 512-bit vectors where :func:`wide_features`
+    says so; whether numba now compiles with them. Call before the first kernel
+    compiles (numba fixes its target then); later calls change nothing."""
+    import llvmlite.binding as llvm
+    import numba
+
+    if numba.config.CPU_FEATURES is None:
+        features = wide_features(llvm.get_host_cpu_features().flatten())
+        if features is not None:
+            numba.config.CPU_FEATURES = features
+    return WIDE_FEATURE in (numba.config.CPU_FEATURES or "").split(",")
