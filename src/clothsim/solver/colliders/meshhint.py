@@ -36,6 +36,11 @@ from .meshprism import P_DOWN, P_UP
 BLOCK = 64
 """hinted points decided together: the scratch (33 x 64 doubles, 17 KB) stays in L1"""
 
+PAD = 8
+"""a block's columns are decided in whole multiples of PAD (the last block padded with
+its last point again): the vector loops then end without a scalar remainder, which
+cost some 35 ns a column (eight doubles a vector with AVX-512; a divisor of BLOCK)"""
+
 S_LAST, S_NOW, S_TRI, S_PRISM, S_ROWS = 0, 3, 6, 19, 33
 """the scratch's rows: a point's last (or reference) position (3) and its position
 now (3), world frame [m]; its triangle's row of ``mesh_tris`` (13); of
@@ -193,7 +198,7 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     n = min(need.shape[0], max(hinted - lo, 0))  # the points below keep hints
     if first >= last or n <= 0:
         return
-    which = np.empty(listed.shape[0], dtype=np.int64)
+    which = np.empty(listed.shape[0] + PAD, dtype=np.int64)
     m = 0
     for i in range(listed.shape[0]):
         q = listed[i]
@@ -202,14 +207,18 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
         h = hints[k, lo + q]
         which[m] = q
         m += np.int64((h >= first) & (h < last))
+    if m == 0:
+        return
+    which[m:m + PAD] = which[m - 1]  # the last block's padding: its last point again
     S = np.empty(S_ROWS * BLOCK)
     O = np.empty(O_ROWS * BLOCK)
     tri = np.empty(BLOCK, dtype=np.uint64)
     for b in range(0, m, BLOCK):
-        block = which[b:min(b + BLOCK, m)]
+        real = min(BLOCK, m - b)
+        block = which[b:b + min(BLOCK, (real + PAD - 1) // PAD * PAD)]
         _gather(S, P, L, (tris, prisms), hints, k, block, lo, tri)
         _decide(S, O, block.shape[0], frames, G[13], closed, placing)
-        for j in range(block.shape[0]):
+        for j in range(real):
             q = block[j]
             p = np.uint64(lo + q)
             route = O[_at(O_ROUTE, j)]
