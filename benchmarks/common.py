@@ -24,11 +24,15 @@ def machine() -> dict:
     import clothsim
     from clothsim.solver.shared import DIVIDE
     from clothsim.solver.simd import has_compress
+    from clothsim.vector_width import widen
 
     # the CPU's name does not say which code the kernels were compiled to: two
     # "AMD EPYC" machines here differ in AVX-512, and the springs in how they
-    # take a length's inverse (docs/performance.md)
-    return {"cpu": cpu, "avx512_code": has_compress(), "inverse_length": "divide" if DIVIDE else "estimate",
+    # take a length's inverse (docs/performance.md); vector_bits: how wide LLVM
+    # made the loops (clothsim.vector_width; 256 also on a CPU without AVX-512,
+    # whose widest vectors those are)
+    return {"cpu": cpu, "avx512_code": has_compress(), "vector_bits": 512 if widen() else 256,
+            "inverse_length": "divide" if DIVIDE else "estimate",
             "python": platform.python_version(), "numpy": numpy.__version__,
             "numba": numba.__version__, "clothsim": clothsim.__version__}
 
