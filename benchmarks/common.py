@@ -24,7 +24,12 @@ def machine() -> dict:
     import clothsim
     from clothsim.solver.shared import DIVIDE
     from clothsim.solver.simd import has_compress
-    from clothsim.vector_width import widen
+
+    try:
+        from clothsim.vector_width import widen
+    except ImportError:  # a tree from before it (an A/B run): LLVM's 256 bits
+        def widen() -> bool:
+            return False
 
     # the CPU's name does not say which code the kernels were compiled to: two
     # "AMD EPYC" machines here differ in AVX-512, and the springs in how they
