@@ -50,8 +50,8 @@ def both(ctl_fields, pose, P, Q, free):
     for kernel in (look, look_settle):
         need = np.ones(P.shape[1], dtype=np.bool_)
         listed = np.full(P.shape[1], -1, dtype=np.int64)
-        args = (P, Q, free, np.int64(0), (now, now), G, limits, ctl_fields["mesh_items"], need, listed)
-        count = kernel(*args, no_hints) if kernel is look_settle else kernel(*args)
+        args = (P, Q, free, np.int64(0), (now, now), G, limits, ctl_fields["mesh_items"])
+        count = kernel(*args, (need, listed), no_hints) if kernel is look_settle else kernel(*args, need, listed)
         out.append((count, need, listed[:count]))
     return out
 

@@ -565,7 +565,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         first, last = _tri_range(g, tris, prisms)
         hinted = min(hi, hints.shape[1]) if k < hints.shape[0] else 0
         # the cells' quiet test as the loop below makes it, for an open mesh
-        count = look_settle(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, need, listed,
+        count = look_settle(P, Q, free, lo, (now, now), G, (reach, short, False, True), items, (need, listed),
                             (hints, k, first, last, hinted))
         if count == 0:
             continue

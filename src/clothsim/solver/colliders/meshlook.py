@@ -155,15 +155,17 @@ def _moved(here, moving):
 
 
 @njit(**EXACT_OPTIONS)
-def look_settle(P, L, free, lo, frames, G, limits, items, need, listed, known):
+def look_settle(P, L, free, lo, frames, G, limits, items, marks, known):
     """:func:`look` where ``moved`` (the settle pass: ``L`` the positions before a later
     pass, which most points left where they were): where at most one point in
     FEW_MOVED moved, :func:`_look_moved` flags those alone, with the same
-    outcome, and lists at once those that ``known`` gives a hint. ``known``: (hints
+    outcome, and lists at once those that ``known`` gives a hint. ``marks``: (need,
+    listed) as :func:`look` takes them. ``known``: (hints
     (K, M) int32, the mesh's row k in it, the first and end rows of its triangles,
     the points below which keep hints); the hints of :func:`.meshhint.hint_pass`."""
     before, now = frames
     reach, short, closed, moved = limits
+    need, listed = marks
     ox, oy, oz, hx, hy, hz, _, inv, nx, ny, nz, _, s0f, _ = G
     n = need.shape[0]
     lx, ly, lz = L[0, lo:lo + n], L[1, lo:lo + n], L[2, lo:lo + n]
