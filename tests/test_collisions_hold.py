@@ -195,3 +195,42 @@ def test_the_moving_loop_takes_the_still_rule_across_its_blocks():
     moved = np.any(out[True] != planes(now), axis=0)
     assert moved[lo:hi].sum() > (hi - lo) // 3
     assert not moved[:lo].any() and not moved[hi:].any()
+
+
+def test_the_moving_sphere_loops_agree_to_the_bit_and_the_cpu_picks_one():
+    """the moving sphere's two loops, carry in blocks (16 vector registers) and carry
+    in the loop (AVX-512's 32), put every point of a spinning, sliding sphere's
+    part in the same place to the bit and count the same fast points; the kernel
+    takes the one loop exactly where numba compiles for AVX-512F"""
+    import llvmlite.binding as llvm
+    import numba
+
+    from clothsim.motion import Animation, Keyframe
+    from clothsim.solver.colliders import sphere
+
+    rng = np.random.default_rng(5)
+    c, r = np.array([0.1, 0.3, -0.2]), 0.25
+    spin = Animation((Keyframe(0.0), Keyframe(0.5, translate=(0.05, 0.0, 0.02), rotate=(0.0, 90.0, 20.0))))
+    spec = types.SimpleNamespace(origin=tuple(c), radius=r, friction=0.4, animation=spin)
+    rows = sphere.pack([spec], 0.1, 0.01, 4)
+    row = rows[2, 0]
+    assert np.abs(row[5:14].reshape(3, 3) - np.eye(3)).max() > 1e-3  # a real turn to carry
+    n = 2 * sphere.CARRY_BLOCK + 39
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    last = c + normal * (r + rng.uniform(-2e-3, 4e-3, (n, 1)))
+    now = last + rng.normal(scale=3e-3, size=(n, 3)) - normal * 4e-3
+    now[::37] += 0.4
+    free = np.ones(n)
+    free[::9] = 0.0
+    far2 = sphere._far2(r)[1]
+    out = []
+    for loop in (sphere._carried_in_blocks, sphere._carried_in_loop):
+        P, L = planes(now), planes(last)
+        fast = loop(P[0], P[1], P[2], L[0], L[1], L[2], free, row, far2)
+        out.append((fast, P))
+    assert out[0][0] == out[1][0] == len(range(0, n, 37))
+    np.testing.assert_array_equal(out[0][1], out[1][1])
+    assert np.any(out[0][1] != planes(now), axis=0).sum() > n // 3
+    features = numba.config.CPU_FEATURES or llvm.get_host_cpu_features().flatten()
+    assert sphere.ONE_CARRY_LOOP == ("+avx512f" in features.split(","))

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
+from ...vector_width import many_registers
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
@@ -40,7 +41,13 @@ SPHERE_OFFSET = 1e-4
 
 CARRY_BLOCK = 256
 """points whose carried last positions a moving sphere's loop works out at a
-time, into a scratch that stays in L1"""
+time, into a scratch that stays in L1 (where the CPU has 16 vector registers)"""
+
+ONE_CARRY_LOOP = many_registers()
+"""whether a moving sphere's carry and rule run as one loop: where the CPU has
+AVX-512's 32 vector registers, which hold the carry's twelve numbers with the
+rest (see :func:`_carried_rule`); a constant to numba, which caches each
+choice under the CPU features it stands for"""
 
 SPHERE_SETTLE = 1e-3
 """depth [m] beyond which a point that a later pass (Provot's) pulled into a
@@ -123,7 +130,18 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
     """The loop of :func:`collide_spheres` for a moving sphere ``row``, its last
     positions carried by the sphere's motion; returns how many points moved
     farther than ``far2`` allows. A function of its own, so that the still
-    loop's code stays as it was."""
+    loop's code stays as it was. With 32 vector registers (ONE_CARRY_LOOP) the
+    carry is made in the loop itself (:func:`_carried_in_loop`), which then
+    costs what the still loop does."""
+    if ONE_CARRY_LOOP:
+        return _carried_in_loop(x, y, z, lx, ly, lz, free, row, far2)
+    return _carried_in_blocks(x, y, z, lx, ly, lz, free, row, far2)
+
+
+@njit(**KERNEL_OPTIONS)
+def _carried_in_blocks(x, y, z, lx, ly, lz, free, row, far2):
+    """:func:`_carried_rule` where the CPU has 16 vector registers: the carried last
+    positions of a block of points first, then the rule on them."""
     cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
     r2 = r * r
     keep = 1.0 - fr
@@ -160,6 +178,37 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
             ny = my + keep * (cy + dy * f - my)
             nz = mz + keep * (cz + dz * f - mz)
             write_point((xq, yq, zq), p, hit, (nx, ny, nz), (xp, yp, zp))
+    return fast
+
+
+@njit(**KERNEL_OPTIONS)
+def _carried_in_loop(x, y, z, lx, ly, lz, free, row, far2):
+    """:func:`_carried_rule` as one loop, each last position carried where it is
+    read: the same operations in the same order, so the same positions to the
+    bit, without the scratch's store and load of every carried position."""
+    cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
+    r2 = r * r
+    keep = 1.0 - fr
+    fast = 0
+    a = carry_of(row, 5)
+    for p in range(x.shape[0]):
+        xp, yp, zp = x[p], y[p], z[p]
+        dx = xp - cx
+        dy = yp - cy
+        dz = zp - cz
+        d2 = dx * dx + dy * dy + dz * dz
+        mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
+        ux = xp - mx
+        uy = yp - my
+        uz = zp - mz
+        far = ux * ux + uy * uy + uz * uz > far2
+        fast += far
+        hit = (d2 < r2) & (d2 > 0.0) & (free[p] != 0.0) & (not far)
+        f = r / np.sqrt(d2 if hit else 1.0)
+        nx = mx + keep * (cx + dx * f - mx)
+        ny = my + keep * (cy + dy * f - my)
+        nz = mz + keep * (cz + dz * f - mz)
+        write_point((x, y, z), p, hit, (nx, ny, nz), (xp, yp, zp))
     return fast
 
 
