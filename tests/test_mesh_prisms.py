@@ -207,3 +207,35 @@ def test_a_simulation_with_hints_runs_as_it_would_without_them(tmp_path):
     np.testing.assert_array_equal(sims[0].positions, sims[1].positions)
     assert (sims[0]._mesh_shapes["mesh_hints"] >= 0).sum() > 100
     assert sims[0].positions[:, 1].min() < sphere_spec["origin"][1]  # it drapes over the ball
+
+
+def test_a_hint_that_could_not_tell_is_dropped_and_a_crossing_gives_one():
+    """over a closed icosphere: a point hovering 1 mm over one triangle with a far one
+    for a hint (whose prism cannot tell) loses it, in the collider pass and in the
+    settle pass; one hovering over a triangle with that hint keeps it (its prism
+    told); one that goes in through a triangle without a hint gets it. The
+    positions are those of the passes without hints."""
+    ball = sphere(subdivisions=3)
+    plain = Ctl(meshes=static()[None], **pack_meshes([ball]))
+    tris = plain.mesh_tris
+    centre = tris[:, :9].reshape(-1, 3, 3).mean(axis=1)
+    normal = tris[:, 9:12]
+    a, b, c = 0, 400, 800
+    gap, side = 1e-3, np.array([1e-5, 0.0, 0.0])
+    last = planes([centre[a] + gap * normal[a], centre[b] + gap * normal[b], centre[c] + gap * normal[c]])
+    now = planes([centre[a] + gap * normal[a] + side, centre[b] + gap * normal[b] + side,
+                  centre[c] - gap * normal[c]])
+    want = run(plain, now.copy(), last)
+    assert np.array_equal(want[:, :2], now[:, :2]) and not np.array_equal(want[:, 2], now[:, 2])
+
+    ctl = hinted([ball], static(), 3)
+    ctl.mesh_hints[0] = [a + 600, b, -1]
+    np.testing.assert_array_equal(run(ctl, now.copy(), last), want)
+    assert list(ctl.mesh_hints[0]) == [-1, b, c]
+
+    moved = want.copy()
+    moved[:, :2] += side[:, None]
+    want_settled = settle_run(plain, moved.copy(), want)
+    ctl.mesh_hints[0] = [a + 600, b, c]
+    np.testing.assert_array_equal(settle_run(ctl, moved.copy(), want), want_settled)
+    assert list(ctl.mesh_hints[0][:2]) == [-1, b]

@@ -36,7 +36,11 @@ resting point crosses the same one substep after substep, and that
 triangle's clear prism (:mod:`.meshprism`) decides its segment at the cost
 of two heights and six dot products, before any search, where it lies in
 the prism. The answer is the search's: the prism holds no other triangle,
-so a hint, right, stale or wrong, never changes where a point goes.
+so a hint, right, stale or wrong, never changes where a point goes. A hint
+that could not tell, where the point's own tests or the search then found
+no crossing, is dropped (-1): a point that has left the surface and hovers
+near it stops paying the hint pass every substep, and its next crossing
+gives it a hint again.
 
 :func:`settle_meshes` runs the same crossing test, in the now pose, without
 friction, on the segment from the positions after the collider pass to the
@@ -498,11 +502,13 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
                 continue
             if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, closed)
                     or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed)):
+                if p < hinted:
+                    hints[k, p] = -1  # a hint that could not tell: see the module's docstring
                 continue
             _, t, _, outer = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
             moved = t >= 0
-            if moved and p < hinted:
-                hints[k, p] = t
+            if p < hinted:
+                hints[k, p] = t  # the triangle crossed, or -1 where none is
             x, y, z = x1, y1, z1
             if moved:
                 sx, sy, sz = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
@@ -584,12 +590,14 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
                 continue
             if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, False)
                     or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, False)):
+                if p < hinted:
+                    hints[k, p] = -1
                 continue
             _, t, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x1, y1, z1, reach, closed)
-            if t < 0:
-                continue
             if p < hinted:
                 hints[k, p] = t
+            if t < 0:
+                continue
             x, y, z = _put_off(tris, t, x0, y0, z0, x1, y1, z1, margin)
             if not clear_side(items, slabs, G, x0, y0, z0, x, y, z, False):
                 _, again, _, _ = _first_crossing(tris, cells, items, G, x0, y0, z0, x, y, z, reach, closed)
