@@ -55,17 +55,3 @@ def widen() -> bool:
         if features is not None:
             numba.config.CPU_FEATURES = features
     return WIDE_FEATURE in (numba.config.CPU_FEATURES or "").split(",")
-
-
-def many_registers() -> bool:
-    """Whether numba compiles for a CPU with AVX-512F, which has 32 vector registers
-    (AVX2 has 16), at either vector width: a loop that keeps more numbers than
-    AVX2 has registers for (a moving collider's carry) can then stay one loop.
-    Read from the features numba compiles with, on which its cache keys every
-    entry, so that a kernel choosing its shape by it never meets the other
-    shape's code."""
-    import llvmlite.binding as llvm
-    import numba
-
-    features = numba.config.CPU_FEATURES or llvm.get_host_cpu_features().flatten()
-    return "+avx512f" in features.split(",")

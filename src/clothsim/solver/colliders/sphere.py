@@ -17,9 +17,9 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from ...vector_width import many_registers
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
+from ..simd import target_features
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 
@@ -43,11 +43,11 @@ CARRY_BLOCK = 256
 """points whose carried last positions a moving sphere's loop works out at a
 time, into a scratch that stays in L1 (where the CPU has 16 vector registers)"""
 
-ONE_CARRY_LOOP = many_registers()
-"""whether a moving sphere's carry and rule run as one loop: where the CPU has
-AVX-512's 32 vector registers, which hold the carry's twelve numbers with the
-rest (see :func:`_carried_rule`); a constant to numba, which caches each
-choice under the CPU features it stands for"""
+ONE_CARRY_LOOP = "+avx512f" in target_features().split(",")
+"""whether a moving sphere's carry and rule run as one loop: where numba compiles
+for AVX-512F, whose 32 vector registers (AVX2 has 16) hold the carry's twelve
+numbers with the rest, at either vector width (see :func:`_carried_rule`); a
+constant to numba, which keys its cache entries on the CPU features it stands for"""
 
 SPHERE_SETTLE = 1e-3
 """depth [m] beyond which a point that a later pass (Provot's) pulled into a
