@@ -172,3 +172,81 @@ def close_lanes(typingctx, qx, qy, qz, weight, a, b, limit2):
         return builder.zext(builder.bitcast(ok, ir.IntType(LANES)), ir.IntType(64))
 
     return sig, codegen
+
+
+ROWS8 = 8
+"""the rows :func:`rows_to_columns` moves at once: eight doubles a vector"""
+
+ROW_WIDTH = 32
+"""the doubles of each row :func:`rows_to_columns` moves: four vectors of eight"""
+
+
+def _transpose8(builder, rows):
+    """The eight <8 x double> vectors ``rows`` transposed: vector k of the answer
+    holds lane k of each of them, in order (three rounds of two-source
+    shuffles, 24 in all)."""
+    idx = ir.IntType(32)
+
+    def mix(a, b, lanes):
+        return builder.shuffle_vector(a, b, ir.Constant(ir.VectorType(idx, ROWS8), lanes))
+
+    low, high = [0, 8, 2, 10, 4, 12, 6, 14], [1, 9, 3, 11, 5, 13, 7, 15]
+    t = []
+    for i in range(0, 8, 2):
+        t += [mix(rows[i], rows[i + 1], low), mix(rows[i], rows[i + 1], high)]
+    pairs_low, pairs_high = [0, 1, 8, 9, 4, 5, 12, 13], [2, 3, 10, 11, 6, 7, 14, 15]
+    u = [None] * 8
+    for base in (0, 4):
+        for odd in (0, 1):
+            a, b = t[base + odd], t[base + 2 + odd]
+            u[base + odd], u[base + 2 + odd] = mix(a, b, pairs_low), mix(a, b, pairs_high)
+    halves_low, halves_high = [0, 1, 2, 3, 8, 9, 10, 11], [4, 5, 6, 7, 12, 13, 14, 15]
+    out = [None] * 8
+    for k in range(4):
+        out[k], out[k + 4] = mix(u[k], u[k + 4], halves_low), mix(u[k], u[k + 4], halves_high)
+    return out
+
+
+@intrinsic
+def rows_to_columns(typingctx, table, rows, j, dst, at, stride):
+    """Rows ``rows[j + i]`` (i < ROWS8) of the float64 (T, ROW_WIDTH) C-ordered
+    ``table`` written as columns: ``dst[at + c * stride + i] = table[rows[j + i],
+    c]`` for every c < ROW_WIDTH, into the float64 flat ``dst``. Each row is read
+    as four whole vectors and each block of eight by eight is transposed in
+    registers, where numba's own loop gathers the table one double at a time.
+    The values are moved, never computed: the same bits. ``rows`` is uint64
+    (N,); nothing is bounds-checked."""
+    if not (isinstance(table, types.Array) and table.ndim == 2 and table.dtype == types.float64
+            and table.layout == "C"):
+        raise TypingError("rows_to_columns takes a C-ordered float64 (T, 32) table")
+    if not (isinstance(rows, types.Array) and rows.ndim == 1 and rows.dtype == types.uint64):
+        raise TypingError("rows_to_columns takes uint64 (N,) row numbers")
+    if not (isinstance(dst, types.Array) and dst.ndim == 1 and dst.dtype == types.float64 and dst.layout == "C"):
+        raise TypingError("rows_to_columns writes a contiguous float64 (M,) array")
+    sig = types.void(table, rows, j, dst, at, stride)
+
+    def codegen(context, builder, signature, args):
+        table_v, rows_v, j_v, dst_v, at_v, stride_v = args
+        table_t, rows_t, j_t, dst_t, at_t, stride_t = signature.args
+        j_v = context.cast(builder, j_v, j_t, types.intp)
+        at_v = context.cast(builder, at_v, at_t, types.intp)
+        stride_v = context.cast(builder, stride_v, stride_t, types.intp)
+        vec = ir.VectorType(ir.DoubleType(), ROWS8)
+        intp = context.get_value_type(types.intp)
+        rows_a = context.make_array(rows_t)(context, builder, rows_v)
+        numbers = []
+        for i in range(ROWS8):
+            ptr = cgutils.get_item_pointer(context, builder, rows_t, rows_a, [builder.add(j_v, ir.Constant(intp, i))],
+                                           wraparound=False)
+            numbers.append(builder.load(ptr))
+        for chunk in range(ROW_WIDTH // ROWS8):
+            first = ir.Constant(intp, chunk * ROWS8)
+            read = [builder.load(_vector_at(context, builder, table_t, table_v, [n, first], vec), align=8)
+                    for n in numbers]
+            for k, column in enumerate(_transpose8(builder, read)):
+                row = builder.mul(ir.Constant(intp, chunk * ROWS8 + k), stride_v)
+                where = _vector_at(context, builder, dst_t, dst_v, [builder.add(at_v, row)], vec)
+                builder.store(column, where, align=8)
+        return context.get_dummy_value()
+
+    return sig, codegen

@@ -12,7 +12,10 @@ In scalar code each such point cost some 60 ns. Here the hinted points go
 in blocks of BLOCK: their positions and their triangles' rows are copied
 into a scratch, one row per quantity (``S_*``), and one loop without
 branches (:func:`_decide`) runs over the block's columns, which LLVM turns
-into vector code (four points at once with AVX2). Every test is made for
+into vector code (four points at once with AVX2). A triangle's prism and
+its own row sit side by side in one row of ``mesh_prisms`` (256 bytes),
+which the copy reads whole, eight points at a time, and turns into the
+scratch's columns in registers (:func:`..simd.rows_to_columns`). Every test is made for
 every point and the outcome selected, so the answer is the scalar tests',
 to the bit: the same operations in the same order, without fastmath.
 
@@ -29,22 +32,25 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS
+from ..simd import ROWS8, rows_to_columns
 from .meshgrid import BARY_TOL, T_NORMAL, T_OFFSET, put_off
 from .meshpose import to_rest, to_world
-from .meshprism import P_DOWN, P_UP
+from .meshprism import P_DOWN, P_TRI, P_UP, ROW_FIELDS
 
 BLOCK = 64
-"""hinted points decided together: the scratch (33 x 64 doubles, 17 KB) stays in L1"""
+"""hinted points decided together: the scratch (38 x 64 doubles, 19 KB) stays in L1"""
 
 PAD = 8
 """a block's columns are decided in whole multiples of PAD (the last block padded with
 its last point again): the vector loops then end without a scalar remainder, which
 cost some 35 ns a column (eight doubles a vector with AVX-512; a divisor of BLOCK)"""
 
-S_LAST, S_NOW, S_TRI, S_PRISM, S_ROWS = 0, 3, 6, 19, 33
+S_LAST, S_NOW, S_PRISM = 0, 3, 6
+S_TRI = S_PRISM + P_TRI
+S_ROWS = S_PRISM + ROW_FIELDS
 """the scratch's rows: a point's last (or reference) position (3) and its position
-now (3), world frame [m]; its triangle's row of ``mesh_tris`` (13); of
-``mesh_prisms`` (14)"""
+now (3), world frame [m]; its triangle's row of ``mesh_prisms``: the prism (14), the
+triangle's row of ``mesh_tris`` (13), zeros"""
 
 O_X, O_ROUTE, O_ROWS = 0, 3, 4
 """the results' rows: where a placed point goes (3, world frame [m]); its route"""
@@ -161,25 +167,26 @@ def _decide(S, O, count, frames, tiny, closed, placing):
 
 
 @njit(**EXACT_OPTIONS)
-def _gather(S, P, L, rows, hints, k, which, lo, tri):
+def _gather(S, P, L, prisms, hints, k, which, lo, tri):
     """Column j of the scratch S filled for point ``lo + which[j]`` (all of ``which``, at
-    most BLOCK): its positions from L and P (3, N) and its hinted triangle's rows
-    from ``rows`` (tris, prisms). ``tri`` (BLOCK,) uint64 is room for the triangles'
-    numbers. The rows are copied one quantity at a time over the block's columns:
-    the stores then run along the scratch's rows, and LLVM makes the copy a vector
-    loop (a point at a time it took a fifth longer)."""
-    tris, prisms = rows
+    most BLOCK): its positions from L and P (3, N) and its hinted triangle's row of
+    ``prisms`` (``mesh_prisms``: the prism and the triangle). ``tri`` (BLOCK,) uint64
+    is room for the triangles' numbers. Eight points' rows at a time are read
+    whole and turned into columns in registers (:func:`..simd.rows_to_columns`):
+    a copy one double at a time, even as a vector loop, gathered 27 scattered
+    doubles a point and took twice as long. A remainder of fewer than eight
+    columns (none where the caller pads to PAD) is copied one double at a time."""
     m = which.shape[0]
     for j in range(m):
         p = np.uint64(lo + which[j])  # unsigned indices: no wrap-around selects
         tri[j] = np.uint64(hints[k, p])
         S[_at(S_LAST, j)], S[_at(S_LAST + 1, j)], S[_at(S_LAST + 2, j)] = L[0, p], L[1, p], L[2, p]
         S[_at(S_NOW, j)], S[_at(S_NOW + 1, j)], S[_at(S_NOW + 2, j)] = P[0, p], P[1, p], P[2, p]
-    for c in range(S_PRISM - S_TRI):
-        for j in range(m):
-            S[_at(S_TRI + c, j)] = tris[tri[j], np.uint64(c)]
-    for c in range(S_ROWS - S_PRISM):
-        for j in range(m):
+    whole = m // ROWS8 * ROWS8
+    for j in range(0, whole, ROWS8):
+        rows_to_columns(prisms, tri, j, S, S_PRISM * BLOCK + j, BLOCK)
+    for c in range(ROW_FIELDS):
+        for j in range(whole, m):
             S[_at(S_PRISM + c, j)] = prisms[tri[j], np.uint64(c)]
 
 
@@ -193,7 +200,7 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     its triangles (a hint outside them is not tried), the points that keep hints
     (below ``hinted``) and the closed flag; ``frames`` (before, now) as for
     :func:`_decide`; ``G`` the grid's scalars (its plane slack last)."""
-    tris, prisms, hints, k, first, last, hinted, closed = mesh
+    _, prisms, hints, k, first, last, hinted, closed = mesh
     need, listed = marks
     n = min(need.shape[0], max(hinted - lo, 0))  # the points below keep hints
     if first >= last or n <= 0:
@@ -216,7 +223,7 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     for b in range(0, m, BLOCK):
         real = min(BLOCK, m - b)
         block = which[b:b + min(BLOCK, (real + PAD - 1) // PAD * PAD)]
-        _gather(S, P, L, (tris, prisms), hints, k, block, lo, tri)
+        _gather(S, P, L, prisms, hints, k, block, lo, tri)
         _decide(S, O, block.shape[0], frames, G[13], closed, placing)
         for j in range(real):
             q = block[j]

@@ -5,7 +5,7 @@ contact, every substep, and each such point's search tries the triangles of
 the cells its segment passes, their planes and Moller-Trumbore tests: that
 search was most of what a draped cloth paid. Yet a resting point crosses
 the same triangle substep after substep. :func:`pack_prisms` gives every
-triangle T of ``mesh_tris`` a row of ``mesh_prisms`` float64 (T, PRISM_FIELDS):
+triangle T of ``mesh_tris`` a row of ``mesh_prisms`` float64 (T, ROW_FIELDS):
 
 - three edge planes in T's plane, inward unit normals m and offsets d [m],
   the offsets moved in by the inset (:func:`_inset`): a point q lies over T,
@@ -38,6 +38,14 @@ from .meshgrid import (G_CELL0, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_
 PRISM_FIELDS = 14
 P_UP, P_DOWN = 12, 13
 """the columns of a row of ``mesh_prisms``: three edge planes (m (3), d each), up, down"""
+
+P_TRI = PRISM_FIELDS
+"""where a row of ``mesh_prisms`` holds its triangle's row of ``mesh_tris`` (13 columns),
+after the prism: the hint pass reads both as one row"""
+
+ROW_FIELDS = 32
+"""the columns of a row of ``mesh_prisms``: the prism, the triangle's row, zeros; 256
+bytes, which the hint pass reads as four whole vectors (:func:`..simd.rows_to_columns`)"""
 
 EDGE_INSET = 1e-5
 """how far the prism's sides stand inside the triangle's edges, in units of its
@@ -167,7 +175,7 @@ def _fill_prisms(tris, g, cells, items, prisms):
     edges = np.empty(12)
     lo, hi = np.empty(3), np.empty(3)
     for t in range(max(t0, 0), min(t0 + nt, tris.shape[0], prisms.shape[0])):
-        prisms[t, :] = 0.0
+        prisms[t, :PRISM_FIELDS] = 0.0
         prisms[t, 3] = np.inf
         inset = _edge_planes(tris, t, wide, edges)
         if not inset > 0.0:
@@ -197,11 +205,13 @@ def _fill_prisms(tris, g, cells, items, prisms):
 
 
 def pack_prisms(packed: dict) -> np.ndarray:
-    """``mesh_prisms`` (T, PRISM_FIELDS) for the arrays of :func:`.meshgrid.pack_grids`
-    (an edge plane no point lies over, for a triangle without a prism)."""
+    """``mesh_prisms`` (T, ROW_FIELDS) for the arrays of :func:`.meshgrid.pack_grids`
+    (an edge plane no point lies over, for a triangle without a prism), each row
+    followed by its triangle's row of ``mesh_tris``."""
     tris = packed["mesh_tris"]
-    prisms = np.zeros((tris.shape[0], PRISM_FIELDS))
+    prisms = np.zeros((tris.shape[0], ROW_FIELDS))
     prisms[:, 3] = np.inf
     for g in packed["mesh_grid"]:
         _fill_prisms(tris, g, packed["mesh_cells"], packed["mesh_items"], prisms)
+    prisms[:, P_TRI:P_TRI + tris.shape[1]] = tris
     return prisms

@@ -151,6 +151,7 @@ def _carried_in_blocks(x, y, z, lx, ly, lz, free, row, far2):
     # radius and friction, outnumber AVX2's sixteen vector registers and
     # were reloaded from the stack every four points (docs/performance.md)
     a = carry_of(row, 5)
+    sphere = (cx, cy, cz, r, r2, keep, far2)
     carried = np.empty((3, CARRY_BLOCK))
     mxs, mys, mzs = carried[0], carried[1], carried[2]
     n = x.shape[0]
@@ -161,23 +162,7 @@ def _carried_in_blocks(x, y, z, lx, ly, lz, free, row, far2):
             mxs[p], mys[p], mzs[p] = carry_point(a, lxq[p], lyq[p], lzq[p])
         xq, yq, zq, fq = x[q:], y[q:], z[q:], free[q:]
         for p in range(m):
-            xp, yp, zp = xq[p], yq[p], zq[p]
-            dx = xp - cx
-            dy = yp - cy
-            dz = zp - cz
-            d2 = dx * dx + dy * dy + dz * dz
-            mx, my, mz = mxs[p], mys[p], mzs[p]
-            ux = xp - mx
-            uy = yp - my
-            uz = zp - mz
-            far = ux * ux + uy * uy + uz * uz > far2
-            fast += far
-            hit = (d2 < r2) & (d2 > 0.0) & (fq[p] != 0.0) & (not far)
-            f = r / np.sqrt(d2 if hit else 1.0)
-            nx = mx + keep * (cx + dx * f - mx)
-            ny = my + keep * (cy + dy * f - my)
-            nz = mz + keep * (cz + dz * f - mz)
-            write_point((xq, yq, zq), p, hit, (nx, ny, nz), (xp, yp, zp))
+            fast += _carried_point((xq, yq, zq), p, (mxs[p], mys[p], mzs[p]), fq[p], sphere)
     return fast
 
 
@@ -191,25 +176,38 @@ def _carried_in_loop(x, y, z, lx, ly, lz, free, row, far2):
     keep = 1.0 - fr
     fast = 0
     a = carry_of(row, 5)
+    sphere = (cx, cy, cz, r, r2, keep, far2)
     for p in range(x.shape[0]):
-        xp, yp, zp = x[p], y[p], z[p]
-        dx = xp - cx
-        dy = yp - cy
-        dz = zp - cz
-        d2 = dx * dx + dy * dy + dz * dz
-        mx, my, mz = carry_point(a, lx[p], ly[p], lz[p])
-        ux = xp - mx
-        uy = yp - my
-        uz = zp - mz
-        far = ux * ux + uy * uy + uz * uz > far2
-        fast += far
-        hit = (d2 < r2) & (d2 > 0.0) & (free[p] != 0.0) & (not far)
-        f = r / np.sqrt(d2 if hit else 1.0)
-        nx = mx + keep * (cx + dx * f - mx)
-        ny = my + keep * (cy + dy * f - my)
-        nz = mz + keep * (cz + dz * f - mz)
-        write_point((x, y, z), p, hit, (nx, ny, nz), (xp, yp, zp))
+        fast += _carried_point((x, y, z), p, carry_point(a, lx[p], ly[p], lz[p]), free[p], sphere)
     return fast
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _carried_point(planes, p, last, fp, sphere):
+    """The still loop's rule for point p of ``planes`` (x, y, z) [m] with its carried
+    last position ``last`` (3 floats) and free weight ``fp``, against ``sphere``
+    (cx, cy, cz, r, r^2, 1 - friction, far2): the point written (whole stores, see
+    ..blend) where it is inside and moved no farther than far2 allows; returns
+    whether it moved farther (1) or not (0)."""
+    x, y, z = planes
+    cx, cy, cz, r, r2, keep, far2 = sphere
+    mx, my, mz = last
+    xp, yp, zp = x[p], y[p], z[p]
+    dx = xp - cx
+    dy = yp - cy
+    dz = zp - cz
+    d2 = dx * dx + dy * dy + dz * dz
+    ux = xp - mx
+    uy = yp - my
+    uz = zp - mz
+    far = ux * ux + uy * uy + uz * uz > far2
+    hit = (d2 < r2) & (d2 > 0.0) & (fp != 0.0) & (not far)
+    f = r / np.sqrt(d2 if hit else 1.0)
+    nx = mx + keep * (cx + dx * f - mx)
+    ny = my + keep * (cy + dy * f - my)
+    nz = mz + keep * (cz + dz * f - mz)
+    write_point(planes, p, hit, (nx, ny, nz), (xp, yp, zp))
+    return np.int64(far)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
