@@ -17,6 +17,8 @@ triangle T of ``mesh_tris`` a row of ``mesh_prisms`` float64 (T, ROW_FIELDS):
   the inset; capped at PRISM_CAP
   cells of the mesh's grid, 0 where another triangle reaches T's plane inside
   it (a mesh that cuts itself, a triangle given twice).
+- then T's own row of ``mesh_tris`` (from column P_TRI) and zeros: the hint
+  pass reads the prism and the triangle as one row of 256 bytes.
 
 A segment whose ends both lie in the narrower prism, between ``-down`` and
 ``up``, can meet no triangle but T, and none that a search's slack would
