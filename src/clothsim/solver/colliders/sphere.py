@@ -142,16 +142,13 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
 def _carried_in_blocks(x, y, z, lx, ly, lz, free, row, far2):
     """:func:`_carried_rule` where the CPU has 16 vector registers: the carried last
     positions of a block of points first, then the rule on them."""
-    cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
-    r2 = r * r
-    keep = 1.0 - fr
-    fast = 0
     # the carried last positions of a block first, then the still loop's
     # rule on them: in one loop the twelve carry numbers, with the centre,
     # radius and friction, outnumber AVX2's sixteen vector registers and
     # were reloaded from the stack every four points (docs/performance.md)
+    fast = 0
     a = carry_of(row, 5)
-    sphere = (cx, cy, cz, r, r2, keep, far2)
+    sphere = _rule_of(row, far2)
     carried = np.empty((3, CARRY_BLOCK))
     mxs, mys, mzs = carried[0], carried[1], carried[2]
     n = x.shape[0]
@@ -171,15 +168,20 @@ def _carried_in_loop(x, y, z, lx, ly, lz, free, row, far2):
     """:func:`_carried_rule` as one loop, each last position carried where it is
     read: the same operations in the same order, so the same positions to the
     bit, without the scratch's store and load of every carried position."""
-    cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
-    r2 = r * r
-    keep = 1.0 - fr
     fast = 0
     a = carry_of(row, 5)
-    sphere = (cx, cy, cz, r, r2, keep, far2)
+    sphere = _rule_of(row, far2)
     for p in range(x.shape[0]):
         fast += _carried_point((x, y, z), p, carry_point(a, lx[p], ly[p], lz[p]), free[p], sphere)
     return fast
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _rule_of(row, far2):
+    """What :func:`_carried_point` reads of a sphere's ``row``, read into locals once:
+    (cx, cy, cz, r, r^2, 1 - friction, far2)."""
+    r = row[3]
+    return row[0], row[1], row[2], r, r * r, 1.0 - row[4], far2
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
