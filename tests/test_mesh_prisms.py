@@ -114,6 +114,9 @@ def test_hints_right_stale_wrong_or_none_give_the_same_positions():
         np.testing.assert_array_equal(run(ctl._replace(mesh_hints=hints.copy()), P0.copy(), L), want)
         np.testing.assert_array_equal(settle_run(ctl._replace(mesh_hints=hints.copy()), P0.copy(), L),
                                       want_settled)
+    # a prism table narrower than the hint pass's whole rows (not made by pack_prisms): no hint decides
+    narrow = ctl._replace(mesh_hints=right.copy(), mesh_prisms=np.ascontiguousarray(ctl.mesh_prisms[:, :14]))
+    np.testing.assert_array_equal(run(narrow, P0.copy(), L), want)
 
 
 def test_a_settle_pass_after_which_few_points_moved_places_them_as_without_hints():

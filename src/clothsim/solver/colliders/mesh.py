@@ -490,7 +490,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         count = look(P, L, free, lo, (before, now), G, (reach, short, closed, False), items, need, listed)
         if count == 0:
             continue
-        hint_pass(P, L, (tris, prisms, hints, k, first, last, hinted, closed), (before, now), G,
+        hint_pass(P, L, (prisms, hints, k, first, last, hinted, closed), (before, now), G,
                   (margin, keep, True), lo, (need, listed[:count]))
         for i in range(count):
             p = lo + listed[i]
@@ -576,7 +576,7 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         if count == 0:
             continue
         # no friction: the placement is the surface point, as below
-        hint_pass(P, Q, (tris, prisms, hints, k, first, last, hinted, closed), (now, now), G,
+        hint_pass(P, Q, (prisms, hints, k, first, last, hinted, closed), (now, now), G,
                   (margin, 1.0, False), lo, (need, listed[:count]))
         for i in range(count):
             p = lo + listed[i]

@@ -195,15 +195,17 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     """The points that ``marks`` (need, listed) lists (``lo`` + each number of
     ``listed``, ascending, each in 0..len(need) - 1 with ``need`` set) and that have a hint, all
     decided by it (:func:`_decide`) before any search: a placed one written to ``P``,
-    and ``need`` cleared for every point it decided. ``mesh``: (tris, prisms, hints, k, first,
-    last, hinted, closed), the mesh's arrays, number, rows of ``mesh_tris`` holding
-    its triangles (a hint outside them is not tried), the points that keep hints
-    (below ``hinted``) and the closed flag; ``frames`` (before, now) as for
-    :func:`_decide`; ``G`` the grid's scalars (its plane slack last)."""
-    _, prisms, hints, k, first, last, hinted, closed = mesh
+    and ``need`` cleared for every point it decided. ``mesh``: (prisms, hints, k, first,
+    last, hinted, closed): ``mesh_prisms`` and the hints, the mesh's number, the rows
+    holding its triangles (a hint outside them is not tried), the points that keep
+    hints (below ``hinted``) and the closed flag; ``frames`` (before, now) as for
+    :func:`_decide`; ``G`` the grid's scalars (its plane slack last). Rows narrower
+    than ROW_FIELDS (not made by :func:`.meshprism.pack_prisms`) decide nothing:
+    the copy reads whole rows."""
+    prisms, hints, k, first, last, hinted, closed = mesh
     need, listed = marks
     n = min(need.shape[0], max(hinted - lo, 0))  # the points below keep hints
-    if first >= last or n <= 0:
+    if first >= last or n <= 0 or prisms.shape[1] < ROW_FIELDS:
         return
     which = np.empty(listed.shape[0] + PAD, dtype=np.int64)
     m = 0

@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS
+from ..simd import ROW_WIDTH
 from .meshgrid import (G_CELL0, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_TRI0, T_NORMAL, T_OFFSET,
                        cell_coord, plane_slack)
 
@@ -45,7 +46,7 @@ P_TRI = PRISM_FIELDS
 """where a row of ``mesh_prisms`` holds its triangle's row of ``mesh_tris`` (13 columns),
 after the prism: the hint pass reads both as one row"""
 
-ROW_FIELDS = 32
+ROW_FIELDS = ROW_WIDTH
 """the columns of a row of ``mesh_prisms``: the prism, the triangle's row, zeros; 256
 bytes, which the hint pass reads as four whole vectors (:func:`..simd.rows_to_columns`)"""
 
