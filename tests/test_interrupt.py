@@ -74,6 +74,40 @@ def test_a_signal_inside_llvmlite_code_waits_until_it_returns():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+def test_a_signal_python_drops_in_a_weakref_callback_is_sent_again(capfd):
+    """An exception raised in a weakref callback (importlib runs one as it drops a
+    module's lock) is printed as "Exception ignored" and dropped; the run then went
+    on as if there had been no Ctrl-C. It is raised again, outside the callback."""
+    import weakref
+
+    from clothsim.cli.stopping import Interrupted, handling_stops
+
+    class Lock:
+        pass
+
+    def callback(_):
+        signal.raise_signal(signal.SIGINT)
+        end = time.monotonic() + 0.2
+        while time.monotonic() < end:  # the interrupt lands in here and is dropped
+            pass
+
+    hook = sys.unraisablehook
+    after = None
+    with pytest.raises(Interrupted):
+        with handling_stops():
+            lock = Lock()
+            ref = weakref.ref(lock, callback)
+            del lock
+            after = time.monotonic()
+            end = after + 5.0
+            while time.monotonic() < end:  # it comes back here, within a retry or two
+                pass
+    assert after is not None and ref() is None
+    assert "Exception ignored" not in capfd.readouterr().err
+    assert sys.unraisablehook is hook
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
 def test_a_signal_outside_llvmlite_code_raises_at_once():
     from clothsim.cli.stopping import Interrupted, Terminated, handling_stops
 

@@ -11,6 +11,12 @@ that every output being written is removed on the way out and ``main`` prints
   callbacks, and a Ctrl-C that landed in one crashed the process (SIGSEGV).
   The handler leaves the signal pending while llvmlite's code is on the stack
   and looks again :data:`RETRY_S` later.
+* The same holds for every place where Python prints an exception as
+  "Exception ignored in ..." and goes on: a weakref callback (importlib runs
+  one as it drops a module's lock), a ``__del__``, a garbage-collector
+  callback. The run went on as if no Ctrl-C had come. While a block runs,
+  ``sys.unraisablehook`` takes such a dropped interrupt back, silently, and
+  sends the signal again :data:`RETRY_S` later, outside that code.
 * A plain ``KeyboardInterrupt`` raised inside code run by ``eval`` of a string
   (numpy and numba do so while they load) marks the interpreter as stopped by
   Ctrl-C, and it then ends by killing itself with SIGINT whatever ``main``
@@ -69,13 +75,26 @@ class _Handler:
     def __call__(self, signum, frame) -> None:
         folders = _unsafe_packages()
         if folders and _inside(frame, folders):
-            self.pending = signum
-            self.timer = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
-            self.timer.daemon = True
-            self.timer.start()
+            self._again(signum)
             return
         self.pending = None
         raise RAISES[signum]()
+
+    def _again(self, signum: int) -> None:
+        """the signal left pending and sent again :data:`RETRY_S` from now"""
+        self.pending = signum
+        self.timer = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
+        self.timer.daemon = True
+        self.timer.start()
+
+    def dropped(self, unraisable, passed_on) -> None:
+        """``sys.unraisablehook``: an interrupt of ours that Python dropped is sent
+        again; anything else goes to ``passed_on``, the hook there was before"""
+        for signum, kind in RAISES.items():
+            if isinstance(unraisable.exc_value, kind):
+                self._again(signum)
+                return
+        passed_on(unraisable)
 
     def close(self) -> None:
         if self.timer is not None:
@@ -86,18 +105,22 @@ class _Handler:
 def handling_stops():
     """SIGINT and SIGTERM raise :class:`Interrupted` and :class:`Terminated` in
     the block (in the main thread only; elsewhere signals cannot be handled).
-    A signal still left pending when the block ends raises there."""
+    A signal still left pending when the block ends raises there; one that
+    Python dropped as unraisable is sent again."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     handler = _Handler()
     previous = {signum: signal.getsignal(signum) for signum in RAISES}
+    previous_hook = sys.unraisablehook
     for signum in RAISES:
         signal.signal(signum, handler)
+    sys.unraisablehook = lambda unraisable: handler.dropped(unraisable, previous_hook)
     try:
         yield
     finally:
         handler.close()
+        sys.unraisablehook = previous_hook
         for signum, old in previous.items():
             signal.signal(signum, old)
     if handler.pending is not None:
