@@ -94,3 +94,36 @@ def test_only_moved_free_finite_points_near_the_surface_are_listed():
     for count, need, listed in both(packed, pose, P, Q, free):
         assert count == 1 and listed[0] == 0
         assert need.tolist() == [True, False, False, False]
+
+
+@pytest.mark.parametrize("closed", [False, True])
+def test_the_compressed_walk_lists_what_the_walk_over_words_does(closed):
+    """the end of the vector pass, two ways: over each word's set bits, and with
+    AVX-512's compress (where the machine has it; the kernels then use it): the
+    same flags, list and count, for any share of flagged points and lengths that
+    are not a multiple of eight"""
+    from clothsim.solver.colliders.meshlook import COMPRESS, _walk_compressed, _walk_words
+    from clothsim.solver.simd import has_compress
+
+    assert COMPRESS == has_compress()
+    if not COMPRESS:
+        pytest.skip("no AVX-512 here: the kernels walk the words")
+    rng = np.random.default_rng(7)
+    items = rng.integers(0, 8, 700).astype(np.int32)  # status entries: NEAR and INSIDE_BITS in the low bits
+    s0 = 37
+    for n in (0, 1, 7, 8, 9, 63, 64, 65, 1003):
+        for share in (0.0, 0.03, 0.5, 1.0):
+            need = rng.random(n) < share
+            cell = rng.integers(-1, 600, n).astype(np.int32)
+            out = []
+            for walk in (_walk_words, _walk_compressed):
+                flags = need.copy()
+                listed = np.full(n, -9, dtype=np.int64)
+                count = walk(flags, cell, (items, s0, closed), listed)
+                out.append((count, flags, listed[:count]))
+            (c0, f0, l0), (c1, f1, l1) = out
+            assert c0 == c1
+            np.testing.assert_array_equal(f0, f1)
+            np.testing.assert_array_equal(l0, l1)
+            if share == 1.0 and n > 60:
+                assert c0 > 0  # some cells are busy

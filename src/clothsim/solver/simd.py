@@ -250,3 +250,45 @@ def rows_to_columns(typingctx, table, rows, j, dst, at, stride):
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+FLAGS8 = 8
+"""the flags :func:`flagged_lanes` reads at once: eight int64 indices a vector"""
+
+
+@intrinsic
+def flagged_lanes(typingctx, flags, at, dst, end):
+    """The indices ``at + i`` (i < FLAGS8) whose flag ``flags[at + i]`` is set, in
+    order, written from ``dst[end]`` by AVX-512's compress; the rest of
+    ``dst[end:end + FLAGS8]`` is overwritten with zeros. Returns how many
+    (int64). ``flags`` is bool or uint8 (N,), ``dst`` int64 (M,), both
+    contiguous: a walk over the set bits of a word ends in a mispredicted
+    branch for most words, this is a load, a compress and a store whatever the
+    flags. Nothing is bounds-checked. Only where :func:`has_compress`."""
+    if not (isinstance(flags, types.Array) and flags.ndim == 1 and flags.layout == "C"
+            and flags.dtype in (types.boolean, types.uint8)):
+        raise TypingError("flagged_lanes reads a contiguous bool or uint8 (N,) array")
+    if not (isinstance(dst, types.Array) and dst.ndim == 1 and dst.dtype == types.int64 and dst.layout == "C"):
+        raise TypingError("flagged_lanes writes a contiguous int64 (M,) array")
+    sig = types.int64(flags, at, dst, end)
+
+    def codegen(context, builder, signature, args):
+        flags_v, at_v, dst_v, end_v = args
+        flags_t, at_t, dst_t, end_t = signature.args
+        at_v = context.cast(builder, at_v, at_t, types.intp)
+        end_v = context.cast(builder, end_v, end_t, types.intp)
+        i64 = ir.IntType(64)
+        vec = ir.VectorType(i64, FLAGS8)
+        bits = ir.VectorType(ir.IntType(1), FLAGS8)
+        bytes_ = ir.VectorType(ir.IntType(8), FLAGS8)
+        read = builder.load(_vector_at(context, builder, flags_t, flags_v, [at_v], bytes_), align=1)
+        chosen = builder.icmp_unsigned("!=", read, ir.Constant(bytes_, None))
+        lanes = builder.add(_splat(builder, builder.sext(at_v, i64), vec), ir.Constant(vec, list(range(FLAGS8))))
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vec, [vec, vec, bits]),
+                                            "llvm.x86.avx512.mask.compress.v8i64")
+        packed = builder.call(fn, [lanes, ir.Constant(vec, None), chosen])
+        builder.store(packed, _vector_at(context, builder, dst_t, dst_v, [end_v], vec), align=8)
+        count = builder.ctpop(builder.bitcast(chosen, ir.IntType(FLAGS8)))
+        return builder.zext(count, i64)
+
+    return sig, codegen

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS, pop_lowest
+from ..simd import FLAGS8, flagged_lanes, has_compress
 from .meshgrid import INSIDE_BITS, NEAR
 from .meshpose import is_rest
 from .meshpose import to_rest as _to_rest
@@ -101,8 +102,17 @@ def look(P, L, free, lo, frames, G, limits, items, need, listed):
             x0, y0, z0 = _to_rest(before, lx[q], ly[q], lz[q])
             x1, y1, z1 = _to_rest(now, px[q], py[q], pz[q])
             _flag(q, (x0, y0, z0, x1, y1, z1), here, bounds, need, cell)
-    # the cells' status entries, read for the points still in question: their flags
-    # eight at a time (one byte each, 0 or 1), a word of none skipped at once
+    return _walk(need, cell, (items, s0, closed), listed)
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _walk_words(need, cell, status, listed):
+    """The end of :func:`look`: the cells' status entries (``status``: items, the first
+    one's index, closed) read for the points still in question (:func:`_busy`),
+    their flags eight at a time (one byte each, 0 or 1), a word of none skipped at
+    once; those still in question listed. Returns their count."""
+    items, s0, closed = status
+    n = need.shape[0]
     count = 0
     whole = n // 8 * 8
     words = need[:whole].view(np.uint64)
@@ -119,6 +129,40 @@ def look(P, L, free, lo, frames, G, limits, items, need, listed):
         listed[count] = q
         count += np.int64(need[q])
     return count
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _walk_compressed(need, cell, status, listed):
+    """:func:`_walk_words` with AVX-512's compress: the flagged points listed first,
+    eight flags at a time and no branch (the walk over a word's bits mispredicted
+    its end for most words), then their status entries read in one loop that keeps
+    those still in question. The same flags, list and count."""
+    items, s0, closed = status
+    n = need.shape[0]
+    flagged = 0
+    whole = n // FLAGS8 * FLAGS8
+    for at in range(0, whole, FLAGS8):
+        # writes listed[flagged:flagged + 8], within listed: flagged <= at
+        flagged += flagged_lanes(need, at, listed, flagged)
+    for q in range(whole, n):
+        listed[flagged] = q
+        flagged += np.int64(need[q])
+    count = 0
+    for i in range(flagged):
+        q = listed[i]
+        c = cell[q]
+        st = items[np.uint64(s0 + (c if c > 0 else 0))]
+        busy = (c < 0) | ((st & NEAR) != 0) | (closed & ((st & INSIDE_BITS) != 0))
+        need[q] = busy
+        listed[count] = q
+        count += np.int64(busy)
+    return count
+
+
+COMPRESS = has_compress()
+"""whether :func:`look` lists its points with AVX-512's compress (:func:`_walk_compressed`)"""
+
+_walk = _walk_compressed if COMPRESS else _walk_words
 
 
 FEW_MOVED = 5
