@@ -64,13 +64,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    try:  # a value parser and Parser.error raise UsageError: one line, like every other error
-        args = build_parser().parse_args(argv)
-    except ClothsimError as exc:
-        print(error_line(exc), file=sys.stderr)
-        return 2
     try:
+        # the stops are handled from the start: a Ctrl-C while the arguments are
+        # parsed ends the run like one later; a value parser and Parser.error raise
+        # UsageError, one line like every other error
         with handling_stops(), warnings.catch_warnings():  # restores the filters and showwarning on the way out
+            args = build_parser().parse_args(argv)
             warnings.simplefilter("always", SceneWarning)
             warnings.showwarning = _one_line(warnings.showwarning)
             return args.func(args)
