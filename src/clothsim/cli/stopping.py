@@ -70,7 +70,9 @@ class _Handler:
 
     def __init__(self):
         self.pending: int | None = None
-        self.timer: threading.Timer | None = None
+        self.timers: list[threading.Timer] = []
+        self.lock = threading.Lock()
+        self.closed = False
 
     def __call__(self, signum, frame) -> None:
         folders = _unsafe_packages()
@@ -83,9 +85,16 @@ class _Handler:
     def _again(self, signum: int) -> None:
         """the signal left pending and sent again :data:`RETRY_S` from now"""
         self.pending = signum
-        self.timer = threading.Timer(RETRY_S, os.kill, (os.getpid(), signum))
-        self.timer.daemon = True
-        self.timer.start()
+        timer = threading.Timer(RETRY_S, self._send, (signum,))
+        timer.daemon = True
+        self.timers.append(timer)
+        timer.start()
+
+    def _send(self, signum: int) -> None:
+        """the retry: the signal sent again, unless the block has ended"""
+        with self.lock:
+            if not self.closed:
+                os.kill(os.getpid(), signum)
 
     def dropped(self, unraisable, passed_on) -> None:
         """``sys.unraisablehook``: an interrupt of ours that Python dropped is sent
@@ -97,8 +106,11 @@ class _Handler:
         passed_on(unraisable)
 
     def close(self) -> None:
-        if self.timer is not None:
-            self.timer.cancel()
+        """no retry sent from now on (one in flight is waited for)"""
+        with self.lock:
+            self.closed = True
+        for timer in self.timers:
+            timer.cancel()
 
 
 @contextlib.contextmanager
