@@ -231,7 +231,12 @@ def against_soa(source: Path, scenes: list[str], repeats: int, info: dict) -> No
     """The ``soa`` lines: every scene with and without self-collision against the
     yardstick, interleaved, best of ``repeats`` rounds."""
     with tempfile.TemporaryDirectory() as tmp:
-        exe = build_soa(source, Path(tmp))
+        exe = build_soa(source, Path(tmp))  # a source it cannot build is refused before any work
+        for scene in scenes:  # load every compiled variant before any is timed
+            sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", threads=1)
+            sim.step(substeps=0)
+            sim.params.self_collision = False
+            sim.step(substeps=0)
         best = {"soa": 0.0}
         for r in range(repeats):
             best["soa"] = max(best["soa"], run_soa(exe))
@@ -266,13 +271,7 @@ def main() -> None:
     args = ap.parse_args()
     info = machine()
     if args.against_soa is not None:
-        scenes = args.scenes.split(",")
-        for scene in scenes:  # load every compiled variant before any is timed
-            sim = Simulation.from_file(ROOT / "scenes" / f"{scene}.json", threads=1)
-            sim.step(substeps=0)
-            sim.params.self_collision = False
-            sim.step(substeps=0)
-        against_soa(Path(args.against_soa), scenes, args.repeats, info)
+        against_soa(Path(args.against_soa), args.scenes.split(","), args.repeats, info)
         return
     if args.mesh_only:
         general_path(args.mesh_points, args.repeats, info)
