@@ -12,6 +12,11 @@ from pathlib import Path
 
 import pytest
 
+# no background compile (solver/prewarm.py) started by the tests' own runs and the
+# commands they start: on a two-core machine it takes a core for tens of seconds
+# and slows whatever the tests time; tests/test_prewarm.py sets it itself
+os.environ.setdefault("CLOTHSIM_PREWARM", "0")
+
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
 
