@@ -65,7 +65,8 @@ def test_simulate_keeps_an_export_that_appeared_during_the_run(tmp_path, write_s
     monkeypatch.setattr(simulate, "run_with_progress", run_and_meanwhile)
     argv = ["simulate", str(write_scene(small_scene())), "--seconds", "0.02", "--no-progress", option, str(out)]
     assert main(argv) == 2
-    err = capsys.readouterr().err.strip().splitlines()
+    err = [line for line in capsys.readouterr().err.strip().splitlines()
+           if not line.startswith("clothsim: compiling")]  # said once, on a cold kernel cache
     assert len(err) == 1 and err[0].startswith("clothsim: error:") and "appeared there" in err[0], err
     assert out.read_text() == "theirs"
     assert _leftovers(tmp_path, {name, "scene.json"}) == []
