@@ -129,6 +129,27 @@ def test_a_signal_python_drops_in_a_weakref_callback_is_sent_again(capfd):
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+def test_a_second_ctrl_c_does_not_cut_the_first_ones_cleanup_short():
+    """the first Ctrl-C raises; one more while its exception removes the outputs
+    (an except or finally in the block) is let go; after the block, Python's own
+    handler is back"""
+    from clothsim.cli.stopping import Interrupted, handling_stops
+
+    cleaned = False
+    with pytest.raises(Interrupted):
+        with handling_stops():
+            try:
+                signal.raise_signal(signal.SIGINT)
+            finally:
+                signal.raise_signal(signal.SIGINT)
+                signal.raise_signal(signal.SIGTERM)
+                cleaned = True
+    assert cleaned
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    with pytest.raises(KeyboardInterrupt):
+        signal.raise_signal(signal.SIGINT)
+
+
 def test_a_signal_outside_llvmlite_code_raises_at_once():
     from clothsim.cli.stopping import Interrupted, Terminated, handling_stops
 

@@ -3,7 +3,8 @@
 While a command runs, both signals have a handler of ours (:func:`handling_stops`)
 that raises :class:`Interrupted` or :class:`Terminated` in the main thread, so
 that every output being written is removed on the way out and ``main`` prints
-``clothsim: interrupted``. Two things make Python's own Ctrl-C unfit for that:
+``clothsim: interrupted``. Once it has raised, a second Ctrl-C (users press it
+again) is let go, so that it does not cut that removal short. Two things make Python's own Ctrl-C unfit for that:
 
 * An exception raised in Python code that C code called through a ``ctypes``
   callback is printed and dropped, and the C code goes on with whatever the
@@ -73,13 +74,17 @@ class _Handler:
         self.timers: list[threading.Timer] = []
         self.lock = threading.Lock()
         self.closed = False
+        self.stopping = False
 
     def __call__(self, signum, frame) -> None:
+        if self.stopping:  # a second Ctrl-C while the first one's exception cleans up: not in its way
+            return
         folders = _unsafe_packages()
         if folders and _inside(frame, folders):
             self._again(signum)
             return
         self.pending = None
+        self.stopping = True
         raise RAISES[signum]()
 
     def _again(self, signum: int) -> None:
@@ -101,6 +106,7 @@ class _Handler:
         again; anything else goes to ``passed_on``, the hook there was before"""
         for signum, kind in RAISES.items():
             if isinstance(unraisable.exc_value, kind):
+                self.stopping = False  # it stopped nothing: the signal is sent again
                 self._again(signum)
                 return
         passed_on(unraisable)
