@@ -166,8 +166,11 @@ class ObjSequence:
                 if self._error is None:
                     self._error = e
             finally:
-                self._free.append(slot)
+                # in this order: Python runs a signal handler after a call such as the
+                # append, not between these two lines, and a Ctrl-C raised between them
+                # in the other order left _busy one too high, and close() waiting forever
                 self._busy -= 1
+                self._free.append(slot)
 
     def _raise_locked(self) -> None:
         if self._error is not None:
