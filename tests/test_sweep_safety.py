@@ -183,6 +183,38 @@ def test_a_killed_sweep_stops_its_workers_and_keeps_its_finished_runs(tmp_path, 
     assert [s.index for s in done] == [0] and [s.index for s in todo] == [1, 2]
 
 
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="finds the workers through /proc")
+def test_a_terminal_ctrl_c_stops_a_sweep_without_a_workers_traceback(tmp_path, write_scene):
+    """a terminal's Ctrl-C reaches the whole process group: the sweep and its
+    workers, one of them idle (its run done, none left to take). The workers leave
+    the stop to the sweep: one line, exit code 130, no traceback, no worker left"""
+    scene = write_scene(small_scene())
+    out = tmp_path / "sweep"
+    argv = [sys.executable, "-m", "clothsim", "sweep", str(scene), "--vary", "cloth.num_height_points=4,400",
+            "--seconds", "60", "--size", "64x64", "--workers", "2", "--no-progress", "-o", str(out)]
+    env = dict(os.environ, CLOTHSIM_PREWARM="0")
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            start_new_session=True)  # its own group, as a terminal gives a command
+    try:
+        record = _wait_for_first_record(proc, out)
+        assert record.get("frames"), "the first run did not finish"
+        workers = _children(proc.pid)
+        time.sleep(0.5)  # the first run's worker back waiting on the pool's queue
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, err
+    lines = [line for line in err.strip().splitlines() if not line.startswith("clothsim: compiling")]
+    assert lines == ["clothsim: interrupted"], err
+    deadline = time.monotonic() + 10
+    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [w for w in workers if _alive(w)], "a worker outlived the sweep"
+
+
 def _cluster_work(client) -> tuple[int, int]:
     """(tasks the scheduler holds, tasks executing on the workers)"""
     held = client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))

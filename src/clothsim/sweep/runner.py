@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import multiprocessing
 import os
+import signal
 import threading
 import time
 import traceback
@@ -119,7 +120,11 @@ WATCH_S = 0.5
 
 def watch_parent(parent: int) -> None:
     """A worker's initializer: a thread that ends the worker once the sweep that
-    started it is gone (killed with SIGKILL, where it could not stop its workers)."""
+    started it is gone (killed with SIGKILL, where it could not stop its workers).
+    And Ctrl-C left to the sweep: a terminal sends it to the whole process group,
+    and a worker that took it printed a traceback (an idle one from its queue's
+    wait); the sweep stops every worker itself."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     def watch() -> None:
         while os.getppid() == parent:
             time.sleep(WATCH_S)
