@@ -150,6 +150,27 @@ def test_a_second_ctrl_c_does_not_cut_the_first_ones_cleanup_short():
         signal.raise_signal(signal.SIGINT)
 
 
+def test_a_signal_while_the_block_ends_is_raised_after_it_and_no_retry_follows():
+    """a signal that lands while the block restores the handlers (a retry already on
+    its way, say) is kept and raised after the block, not inside its exit, which
+    would have left our handlers in place; a retry left for later sends nothing"""
+    from clothsim.cli.stopping import RETRY_S, _Handler
+
+    handler = _Handler()
+    handler._again(signal.SIGINT)  # a retry on its way
+    handler.close()
+    handler(signal.SIGTERM, None)  # landing during the exit: kept, not raised
+    assert handler.pending == signal.SIGTERM
+    before = signal.getsignal(signal.SIGINT)
+    got = []
+    signal.signal(signal.SIGINT, lambda *a: got.append(a))
+    try:
+        time.sleep(4 * RETRY_S)
+    finally:
+        signal.signal(signal.SIGINT, before)
+    assert got == []  # the cancelled retry sent nothing
+
+
 def test_a_signal_outside_llvmlite_code_raises_at_once():
     from clothsim.cli.stopping import Interrupted, Terminated, handling_stops
 

@@ -79,6 +79,9 @@ class _Handler:
     def __call__(self, signum, frame) -> None:
         if self.stopping:  # a second Ctrl-C while the first one's exception cleans up: not in its way
             return
+        if self.closed:  # the block is ending: raised after it (see handling_stops), not inside its exit
+            self.pending = signum
+            return
         folders = _unsafe_packages()
         if folders and _inside(frame, folders):
             self._again(signum)
@@ -112,9 +115,11 @@ class _Handler:
         passed_on(unraisable)
 
     def close(self) -> None:
-        """no retry sent from now on (one in flight is waited for)"""
-        with self.lock:
-            self.closed = True
+        """no retry sent from now on (one in flight is waited for); a signal from now
+        on is left pending"""
+        self.closed = True
+        with self.lock:  # a retry that saw the block open has sent its signal
+            pass
         for timer in self.timers:
             timer.cancel()
 
