@@ -48,11 +48,18 @@ def target_features() -> str:
     return llvm.get_host_cpu_features().flatten()
 
 
+def has_avx512f() -> bool:
+    """Whether numba compiles for AVX-512F (32 vector registers at either width,
+    the compress instructions); its cache keys every entry on these features."""
+    return "+avx512f" in target_features().split(",")
+
+
 def has_compress() -> bool:
-    """Whether compiled code may use the AVX-512 compress (AVX512F)."""
+    """Whether compiled code may use the AVX-512 compress (AVX512F), unless
+    FORCE_PORTABLE asks for the portable path."""
     if os.environ.get(FORCE_PORTABLE):
         return False
-    return "+avx512f" in target_features().split(",")
+    return has_avx512f()
 
 
 def _vector_at(context, builder, array_type, array, index, vec):

@@ -19,7 +19,7 @@ from numba import njit
 
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
-from ..simd import target_features
+from ..simd import has_avx512f
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 
@@ -43,7 +43,7 @@ CARRY_BLOCK = 256
 """points whose carried last positions a moving sphere's loop works out at a
 time, into a scratch that stays in L1 (where the CPU has 16 vector registers)"""
 
-ONE_CARRY_LOOP = "+avx512f" in target_features().split(",")
+ONE_CARRY_LOOP = has_avx512f()
 """whether a moving sphere's carry and rule run as one loop: where numba compiles
 for AVX-512F, whose 32 vector registers (AVX2 has 16) hold the carry's twelve
 numbers with the rest, at either vector width (see :func:`_carried_rule`); a
