@@ -12,8 +12,11 @@ round's differences, so a slow spell of the machine (they last seconds here)
 falls on the runs compared alike.
 
 Then ``"bench": "settle"`` lines time the whole two-second fall and settle of
-``selfCollision`` at 100x100 on one thread and on all: the short stretches
-above end before the cloth piles up, which is when self-collision costs most.
+``selfCollision`` at 100x100 (``--settle-sizes 100,200`` for more) on one
+thread and on all, in rounds that run one then the other, each line the best
+of its rounds and the threaded one with each round's ratio: the short
+stretches above end before the cloth piles up, which is when self-collision
+costs most.
 
 Last, ``"bench": "general_path"`` lines compare the solver's two paths at the
 same point count (``--mesh-points``, 10,000 by default), self-collision on,
@@ -35,7 +38,8 @@ line per scene gives the best of the rounds of each and the ratios to
 on is about 3x ``soa list``, six times its springs-only path about 5x (the
 yardstick's README has how the course code compared on each kind of machine).
 
-    python benchmarks/bench_sim.py [--sizes 50,100,200] [--scenes pinned2,sphere] [--repeats 3] [--no-settle]
+    python benchmarks/bench_sim.py [--sizes 50,100,200] [--scenes pinned2,sphere] [--repeats 3]
+                                   [--no-settle | --settle-sizes 100,200]
                                    [--no-mesh] [--mesh-only] [--mesh-points 10000]
     python benchmarks/bench_sim.py --against-soa [path/to/soa.c] [--scenes ...] [--repeats 5]
 """
@@ -128,6 +132,28 @@ MESH_PLACE = {"sphere": {"translate": [0.5, 1.0, 0.5]},
               "selfCollision": {"rotate": [-90, 0, 0], "translate": [0.5, 0.5, 0.0]}}
 """where the mesh (a 1 m square about the origin in the y=0 plane) goes to lie
 where the scene's grid cloth starts"""
+
+
+def settle(n: int, threads: int, repeats: int, info: dict) -> None:
+    """The whole fall and settle of ``selfCollision`` at n x n on one thread and on
+    ``threads``: each round runs one then the other, so a slow spell of the machine
+    falls on both alike; the figures are the best of the rounds, and
+    ``threads_over_one`` the ratio of the two in each round."""
+    runs: dict[int, list[tuple[float, float]]] = {t: [] for t in sorted({1, threads})}
+    for _ in range(repeats):
+        for t in runs:
+            runs[t].append(run_once("selfCollision", n, SETTLE_SECONDS, threads=t))
+    ratios = [round(a[0] / b[0], 3) for a, b in zip(runs[threads], runs[1])]
+    for t, rounds in runs.items():
+        rate = max(r for r, _ in rounds)
+        record = {"bench": "settle", "scene": "selfCollision", "grid": f"{n}x{n}",
+                  "simulated_s": SETTLE_SECONDS, "threads": t, "rounds": repeats,
+                  "substeps_per_s": round(rate, 1),
+                  "list_rebuilds_per_100_substeps": round(statistics.median(b for _, b in rounds), 1),
+                  "realtime_factor": round(rate / 2700.0, 3)}
+        if t != 1:
+            record["threads_over_one"] = ratios
+        emit({**record, "peak_rss_mib": round(peak_rss_mib(), 1), **info})
 
 
 def mesh_scene(scene: str, obj: Path, folder: Path) -> Path:
@@ -263,6 +289,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-settle", action="store_true",
                     help="leave out the 2-second fall and settle of selfCollision 100x100")
+    ap.add_argument("--settle-sizes", default="100",
+                    help="grid sizes of the fall and settle, e.g. 100,200 (200x200 takes minutes)")
     ap.add_argument("--no-mesh", action="store_true", help="leave out the general path's comparison")
     ap.add_argument("--mesh-only", action="store_true", help="only the general path's comparison")
     ap.add_argument("--mesh-points", type=int, default=10000)
@@ -300,14 +328,8 @@ def main() -> None:
                   "realtime_factor_threads": round(split / 2700.0, 3),
                   "peak_rss_mib": round(peak_rss_mib(), 1), **info})
     if "selfCollision" in args.scenes.split(",") and not args.no_settle:
-        # the whole fall and settle of a 100x100 cloth: the piled-up frames cost most
-        for t in sorted({1, threads}):
-            rate, rebuilds = measure("selfCollision", 100, SETTLE_SECONDS, True, args.repeats, threads=t)
-            emit({"bench": "settle", "scene": "selfCollision", "grid": "100x100",
-                  "simulated_s": SETTLE_SECONDS, "threads": t, "substeps_per_s": round(rate, 1),
-                  "list_rebuilds_per_100_substeps": round(rebuilds, 1),
-                  "realtime_factor": round(rate / 2700.0, 3), "peak_rss_mib": round(peak_rss_mib(), 1),
-                  **info})
+        for n in (int(s) for s in args.settle_sizes.split(",")):
+            settle(n, threads, args.repeats, info)
     if not args.no_mesh:
         general_path(args.mesh_points, args.repeats, info)
 
