@@ -145,12 +145,17 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     # tested in single precision (see near_pushes)
     wide2 = widened2(reach, extent)
     checked = touching if fresh else checked_pairs(meta, reachable * (SLACK_BUCKETS - 1))
+    sure = min(checked, touching)
     for t in prange(parts):
         h = near_pushes(P, reach, lists, t, parts, fresh, reachable * NEAR_LEVELS, NEAR_LEVELS / span2,
                         wide2, not fresh)
-        k0, k1 = part_range(checked, parts, t)
-        tally[t, 1] = h + pair_pushes(P, reach, pairs, k0, max(k0, min(k1, touching)), k1, lists, t, h,
-                                      wide2)
+        # the pairs that touched at the build cost each part the same only if
+        # each takes its share of them: cut evenly as one range, the first part
+        # took them all and the others only the cheap tests of the rest
+        a0, a1 = part_range(sure, parts, t)
+        h += pair_pushes(P, reach, pairs, a0, a1, a1, lists, t, h, wide2)
+        b0, b1 = part_range(checked - sure, parts, t)
+        tally[t, 1] = h + pair_pushes(P, reach, pairs, sure + b0, sure + b0, sure + b1, lists, t, h, wide2)
     hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]
