@@ -19,7 +19,7 @@ from clothsim.solver.groups import Knobs, Points
 from clothsim.solver.provot import provot
 from clothsim.solver.selfcollide import NeighbourList, near_stencil, self_collide
 from clothsim.solver.selfcollide.buffers import BUCKET, NEAR, PAIRS, SKIN, SLACK_BUCKETS, SPARSE_PAIRS, WIDE
-from clothsim.solver.selfcollide.drift import drift_bound
+from clothsim.solver.selfcollide.drift import drift_bound, levels
 from clothsim.solver.selfcollide.hashgrid import bounds
 from clothsim.solver.selfcollide.listbuild import COMPRESS, NARROW, build_list
 from clothsim.solver.selfcollide.nearstencil import COARSE_SKIN, NEAR_LEVELS, SKIN_FACTOR, grid_metric, skin_factor
@@ -506,7 +506,8 @@ def test_drift_test_bounds_every_pair():
 
     def bound(P):  # no centres kept from before
         Q, reference = single(P, ref)
-        return drift_bound(Q, reference, skin, np.zeros((2, 3)), magnitudes(P, ref))
+        centres = np.zeros((2, 3))  # the parts' steps taken as the substep takes them
+        return drift_bound(Q, reference, skin, centres, magnitudes(P, ref), levels(Q, reference, skin, centres, 3))
 
     def widest(P):  # the largest difference of two displacements, along each axis and overall
         d = P - ref
@@ -543,7 +544,8 @@ def test_drift_test_keeps_centres_while_they_hold():
 
     def drifted(P):
         Q, reference = single(P, ref)
-        return np.isinf(drift_bound(Q, reference, skin, centres, magnitudes(P, ref)))
+        return np.isinf(drift_bound(Q, reference, skin, centres, magnitudes(P, ref),
+                                    levels(Q, reference, skin, centres, 2)))
 
     part = ref.copy()
     part[1, :2500] -= 0.6 * skin  # half falls: only the box middle holds

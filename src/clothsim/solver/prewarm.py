@@ -83,7 +83,7 @@ def calls(variant: str) -> list:
     from .groups import Knobs, Points, Scratch
     from .selfcollide import NeighbourList
     from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs, _even_segments, _share_segments
-    from .selfcollide.drift import _to_single, drift_bound
+    from .selfcollide.drift import _level_both, _to_single, drift_bound
     from .selfcollide.nearstencil import near_pushes
     from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
     from .selfcollide.slack import label_pairs
@@ -132,7 +132,8 @@ def calls(variant: str) -> list:
             (_even_segments, (zero, np.int64(1))),
             (_append, (lists.near_pairs, lists.pairs, zero)),
             (_copy_pairs, (lists.pairs, lists.pairs, zero)),
-            (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0)),
+            (drift_bound, (lists.pos32, lists.reference, 0.01, lists.centres, 1.0, np.zeros((1, 2), dtype=np.int32))),
+            (_level_both, (lists.pos32, lists.reference, 0.01, lists.centres, zero, i64)),
             (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
     out += [(place_handles, (P, control.moved_points, control.moved_to, zero))]
     if mesh:

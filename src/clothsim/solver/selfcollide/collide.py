@@ -11,7 +11,7 @@ from numba import njit, prange
 
 from ..shared import EXACT_OPTIONS, KERNEL_OPTIONS, part_range
 from .buffers import BUCKET, PAIRS, REBUILDS, SKIN, SLACK_BUCKETS, SPARSE_PAIRS, VALID
-from .drift import drift_bound, single_copy, widened2
+from .drift import copy_and_level, drift_bound, single_copy, widened2
 from .hashgrid import sort_into_cells
 from .listbuild import COMPRESS, query_points
 from .nearstencil import NEAR_LEVELS, near_pushes
@@ -65,9 +65,10 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     # the positions in single precision, from the last build's origin: the drift
     # test, the near stencil and the pairs that rarely touch read them (see
     # drift_bound, near_pushes, pair_pushes)
-    extent = single_copy(P, frame, pos32, extent32)
+    worst = np.empty((parts, 2), dtype=np.int32)
+    extent = copy_and_level(P, frame, pos32, extent32, reference, skin, centres, worst)
     bound = np.inf if meta[VALID] == 0 else drift_bound(pos32, reference, skin, centres,
-                                                         extent + frame[3])
+                                                         extent + frame[3], worst)
     fresh = not bound < skin
     span2 = (reach + skin) ** 2 - reach * reach
     if fresh:
