@@ -156,19 +156,16 @@ def single_copy(P, frame, Q, extent):
     for t in prange(parts):
         lo, hi = part_range(n, parts, t)
         extent[t] = _to_single(P, frame[0], frame[1], frame[2], Q, lo, hi)
-    most = extent.view(np.float32)
-    top = most[0]
-    for t in range(1, parts):
-        top = max(top, most[t])
-    return np.float64(top)
+    return _largest(extent)
 
 
 @njit(**EXACT_OPTIONS, inline="always")
 def copy_and_level(P, frame, Q, extent, reference, skin, centres, worst):
     """:func:`single_copy`, each part then measuring its points' displacements
     from ``reference`` against the last ``centres`` into its row of ``worst``
-    (parts, 2) int32 (see :func:`drift_bound`) while they are in its cache; a
-    pass of its own over every point took 5 to 6 microseconds at 100x100."""
+    (parts, 2) int32 (see :func:`drift_bound`) while they are in its cache: a
+    pass of its own after the copy read, on two threads, half its points from
+    the other core (docs/performance.md, 'Where two threads lose time')."""
     parts = extent.shape[0]
     n = P.shape[1]
     for t in prange(parts):
@@ -177,9 +174,15 @@ def copy_and_level(P, frame, Q, extent, reference, skin, centres, worst):
         mean, mid = _level_both(Q, reference, skin, centres, lo, hi)
         worst[t, 0] = mean
         worst[t, 1] = mid
+    return _largest(extent)
+
+
+@njit(cache=True, inline="always")
+def _largest(extent):
+    """the largest of the parts' magnitudes, noted as float32 bits in ``extent``"""
     most = extent.view(np.float32)
     top = most[0]
-    for t in range(1, parts):
+    for t in range(1, most.shape[0]):
         top = max(top, most[t])
     return np.float64(top)
 
