@@ -11,10 +11,13 @@ reads once, when it first compiles anything in the process; its cache keys
 every entry on those features, so kernels of either width never mix. The
 gain is measured in docs/performance.md.
 
-It is left alone where the user chose the target (``NUMBA_CPU_NAME`` or
-``NUMBA_CPU_FEATURES`` set), where the CPU lacks AVX-512F, and where
-``CLOTHSIM_VECTOR_BITS=256`` asks for LLVM's default. This module imports
-numba only when :func:`widen` is called.
+``CLOTHSIM_VECTOR_BITS=256`` asks for 256-bit vectors instead, by adding
+``+prefer-256-bit``: LLVM's model of AMD's Zen 4 (``znver4``) lacks that
+tuning, so there its default is already 512 bits, and leaving the features
+alone would not narrow anything. Both are left alone where the user chose
+the target (``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` set) and where the
+CPU lacks AVX-512F. This module imports numba only when :func:`widen` is
+called.
 """
 
 from __future__ import annotations
@@ -22,30 +25,33 @@ from __future__ import annotations
 import os
 
 NARROW = "CLOTHSIM_VECTOR_BITS"
-"""the environment variable that keeps LLVM's 256-bit vectors when set to 256"""
+"""the environment variable that asks for 256-bit vectors when set to 256"""
 
 WIDE_FEATURE = "-prefer-256-bit"
 """the LLVM feature added to the host's: vectors of the full 512 bits"""
 
+NARROW_FEATURE = "+prefer-256-bit"
+"""the LLVM feature added to the host's for CLOTHSIM_VECTOR_BITS=256"""
+
 
 def wide_features(host: str, environ=None) -> str | None:
     """The feature string numba should compile for, given the host's (``host``, as
-    llvmlite flattens it) and the environment (``os.environ`` by default); None
-    where the host's features stand (see the module's docstring)."""
+    llvmlite flattens it) and the environment (``os.environ`` by default): the
+    host's with 512-bit vectors, or 256-bit ones where CLOTHSIM_VECTOR_BITS=256;
+    None where the host's features stand (see the module's docstring)."""
     environ = os.environ if environ is None else environ
-    if environ.get(NARROW, "").strip() == "256":
-        return None
     if environ.get("NUMBA_CPU_NAME") or environ.get("NUMBA_CPU_FEATURES"):
         return None
-    features = host.split(",")
-    if "+avx512f" not in features or WIDE_FEATURE in features:
+    features = [f for f in host.split(",") if f not in (WIDE_FEATURE, NARROW_FEATURE)]
+    if "+avx512f" not in features:
         return None
-    return ",".join(features + [WIDE_FEATURE])
+    narrow = environ.get(NARROW, "").strip() == "256"
+    return ",".join(features + [NARROW_FEATURE if narrow else WIDE_FEATURE])
 
 
 def widen() -> bool:
-    """Set numba's compile features to 512-bit vectors where :func:`wide_features`
-    says so; whether numba now compiles with them. Call before the first kernel
+    """Set numba's compile features to the vector width :func:`wide_features` picks;
+    whether numba now compiles 512-bit vectors. Call before the first kernel
     compiles (numba fixes its target then); later calls change nothing."""
     import llvmlite.binding as llvm
     import numba
