@@ -16,7 +16,8 @@ points or pairs) and nanoseconds per item.
 - ``selfCollision`` at ``--size`` (100 by default) after its 2 s fall and
   settle, when the cloth lies piled up, on one thread and cut over numba's
   threads: the springs with Verlet, the Provot pass, self-collision between
-  list builds, the cell sort of a build, and a whole build (the substep of
+  list builds, its drift test with the copy to single precision made beside
+  it, the cell sort of a build, and a whole build (the substep of
   self-collision that makes a new list).
 
 The stages are wrapped here the way the substep calls them (``prange`` over
@@ -38,8 +39,9 @@ from numba import njit, prange
 
 from clothsim import Simulation
 from clothsim.solver.provot import provot
-from clothsim.solver.selfcollide.buffers import PAIRS, VALID
+from clothsim.solver.selfcollide.buffers import PAIRS, SKIN, VALID
 from clothsim.solver.selfcollide.collide import self_collide
+from clothsim.solver.selfcollide.drift import copy_and_level, drift_bound
 from clothsim.solver.selfcollide.hashgrid import sort_into_cells
 from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
 from clothsim.solver.springs import integrate, spring_forces, verlet_gather
@@ -71,13 +73,22 @@ def _self_collide(P, points, steps, lists, pairs):
     return self_collide(P, points, steps, lists, pairs)
 
 
+def _drift(P, lists, reach):
+    """the drift test with the copy to single precision it is made beside, as a substep makes them"""
+    skin = 0.001 * lists.meta[SKIN] * reach
+    worst = np.empty((lists.extent32.shape[0], 2), dtype=np.int32)
+    extent = copy_and_level(P, lists.frame, lists.pos32, lists.extent32, lists.reference, skin, lists.centres,
+                            worst)
+    return drift_bound(lists.pos32, lists.reference, skin, lists.centres, extent + lists.frame[3], worst)
+
+
 @njit
 def _cells(P, radius, span, lists):
     """the cell sort runs on one thread in either build"""
     return sort_into_cells(P, radius, span, lists)
 
 
-WRAPPED = {parallel: [njit(parallel=parallel)(f) for f in (_springs, _provot, _self_collide)]
+WRAPPED = {parallel: [njit(parallel=parallel)(f) for f in (_springs, _provot, _self_collide, _drift)]
            for parallel in (False, True)}
 """each wrapper compiled serial and parallel"""
 
@@ -181,7 +192,7 @@ def piled_stages(size: int, rounds: int, info: dict) -> None:
         copy = Copy(sim)
         sol, s = copy.solver, copy.scratch
         knobs, springs, points, lists = sol.knobs(sim.params), sol.springs, sol.points, sol.lists
-        f_springs, f_provot, f_self = WRAPPED[t > 1]
+        f_springs, f_provot, f_self, f_drift = WRAPPED[t > 1]
         steps = sim.params.simulation_steps
         reach = 2.0 * points.thickness
         n = s.P.shape[1]
@@ -201,6 +212,8 @@ def piled_stages(size: int, rounds: int, info: dict) -> None:
                        200, slots, "springs"),
             "self-collision, list just built": (lambda s=s, points=points, steps=steps, lists=lists, f=f_self:
                                                 f(s.P, points, steps, lists, lists.pairs), 50, n, "points"),
+            "drift test and its copy": (lambda s=s, lists=lists, reach=reach, f=f_drift: f(s.P, lists, reach),
+                                        200, n, "points"),
             "cell sort of a build": (lambda s=s, points=points, lists=lists, reach=reach:
                                      _cells(s.P, 1.2 * reach, points.span, lists), 50, n, "points"),
             "self-collision with a build": (rebuild, 20, n, "points")})
