@@ -14,9 +14,11 @@ falls on the runs compared alike.
 Then ``"bench": "settle"`` lines time the whole two-second fall and settle of
 ``selfCollision`` at 100x100 (``--settle-sizes 100,200`` for more) on one
 thread and on all, in rounds that run one then the other, each line the best
-of its rounds and the threaded one with each round's ratio: the short
-stretches above end before the cloth piles up, which is when self-collision
-costs most.
+of its rounds and the threaded one with each round's ratio and the round
+trip of a cache line between the first two CPUs before and after the round
+(``core_round_trip_ns``, from ``core_trip.c``, built with the C compiler on
+PATH): the short stretches above end before the cloth piles up, which is
+when self-collision costs most.
 
 Last, ``"bench": "general_path"`` lines compare the solver's two paths at the
 same point count (``--mesh-points``, 10,000 by default), self-collision on,
@@ -61,6 +63,7 @@ import numba
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import emit, machine, peak_rss_mib  # noqa: E402
+from core_trip import CoreTrip  # noqa: E402
 
 from clothsim import Simulation  # noqa: E402
 
@@ -138,11 +141,17 @@ def settle(n: int, threads: int, repeats: int, info: dict) -> None:
     """The whole fall and settle of ``selfCollision`` at n x n on one thread and on
     ``threads``: each round runs one then the other, so a slow spell of the machine
     falls on both alike; the figures are the best of the rounds, and
-    ``threads_over_one`` the ratio of the two in each round."""
+    ``threads_over_one`` the ratio of the two in each round, with
+    ``core_round_trip_ns`` the round trip of a line between CPUs 0 and 1 before
+    and after each round (None where it cannot be measured): the threads gain
+    only where that is short (docs/performance.md, "Two cores near and far")."""
     runs: dict[int, list[tuple[float, float]]] = {t: [] for t in sorted({1, threads})}
+    trip, trips = CoreTrip(), []
     for _ in range(repeats):
+        before = trip.probe()
         for t in runs:
             runs[t].append(run_once("selfCollision", n, SETTLE_SECONDS, threads=t))
+        trips.append([before, trip.probe()])
     ratios = [round(a[0] / b[0], 3) for a, b in zip(runs[threads], runs[1])]
     for t, rounds in runs.items():
         rate = max(r for r, _ in rounds)
@@ -153,6 +162,8 @@ def settle(n: int, threads: int, repeats: int, info: dict) -> None:
                   "realtime_factor": round(rate / 2700.0, 3)}
         if t != 1:
             record["threads_over_one"] = ratios
+            # each round's placement of the first two CPUs, before and after it
+            record["core_round_trip_ns"] = trips
         emit({**record, "peak_rss_mib": round(peak_rss_mib(), 1), **info})
 
 
