@@ -353,6 +353,14 @@ def build(P, rest, reach, radius, lists, pairs, sparse=True):
     return build_list(P, np.array(rest, dtype=np.float64), reach, radius, np.inf, lists, pairs, sparse)
 
 
+PUSH_ROUNDING = 2.0 ** -22
+"""how far, as a share of the reach, a point pushed by self-collision may be from
+the double-precision reference: the pushes and their sums are kept in single
+precision (``buffers.PUSH_DTYPE``), each push within 2**-24 of its size, which is
+at most the reach. A push to a wrong pair, or a missing one, is thousands of
+times that"""
+
+
 def _self_collide(pos, rest, thickness, steps=1, pinned=None, lists=None):
     """Run the kernel on (N, 3) positions in place; return (the number of colliding
     pairs, the neighbour list with its pairs now)."""
@@ -372,8 +380,8 @@ def test_self_collision_pushes_pair_apart():
     before = pos.copy()
     rest = np.array([[0.0, 0, 0], [5.0, 0, 0]])  # far apart at rest
     assert _self_collide(pos, rest, t)[0] == 1
-    np.testing.assert_allclose(np.linalg.norm(pos[0] - before[1]), 2 * t, rtol=1e-12)
-    np.testing.assert_allclose(np.linalg.norm(pos[1] - before[0]), 2 * t, rtol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(pos[0] - before[1]), 2 * t, rtol=PUSH_ROUNDING)
+    np.testing.assert_allclose(np.linalg.norm(pos[1] - before[0]), 2 * t, rtol=PUSH_ROUNDING)
 
 
 def test_self_collision_pushes_once():
@@ -627,7 +635,8 @@ def reference_self_collision(pos, rest, free, reach, steps):
 @pytest.mark.parametrize("points", [60, 400])
 def test_few_and_many_pushes_move_points_alike(points, parts):
     """a handful of colliding pairs (only their ends are visited) and hundreds (every
-    point is) push exactly as the brute-force reference does, pinned points stay,
+    point is) push as the brute-force reference does (to the rounding of the pushes,
+    PUSH_ROUNDING), pinned points stay,
     and the buffers are left at zero"""
     rng = np.random.default_rng(points)
     pos = rng.uniform(0, 0.25, size=(points, 3))
@@ -640,7 +649,7 @@ def test_few_and_many_pushes_move_points_alike(points, parts):
     P = planes(pos)
     x, found = collide_in_place(P, rest, free, 0.02, 3, x)
     assert found == hits
-    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=PUSH_ROUNDING * 0.04)
     assert not x.push.any() and not x.count.any()
 
 
@@ -677,7 +686,7 @@ def test_touching_bucket_that_drifts_apart_pushes_only_the_pairs_still_touching(
     x, found = collide_in_place(P, rest, free, 0.02, 3, x)
     assert x.rebuilds == 1 and found == hits
     assert np.all(x.tally[:parts, TALLY_PUSHED] == SPARSE_PAIRS)  # the sparse apply, at its limit
-    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=PUSH_ROUNDING * 0.04)
     assert not x.push.any() and not x.count.any()
 
 
@@ -925,7 +934,7 @@ def test_list_build_writes_the_same_pairs_directly_and_stops_at_its_capacity(spa
 def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze, parts):
     """on a cloth whose grid neighbours sit inside the list radius at rest, the near
     stencil (which checks them every substep) and the list (the rest) together push
-    exactly like a brute-force pass: a squeezed, folded, jittered cloth; also with
+    like a brute-force pass (to PUSH_ROUNDING): a squeezed, folded, jittered cloth; also with
     the work cut into parts, each with its share of the list, the stencil and the
     pushes"""
     m, near, pos = folded_cloth(n, ratio, squeeze)
@@ -938,7 +947,7 @@ def test_self_collision_with_near_stencil_matches_reference(n, ratio, squeeze, p
     P = planes(pos)
     lists, hits = collide_in_place(P, m.rest_positions, free, m.thickness, 3, lists)
     assert hits == pairs > 100
-    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=PUSH_ROUNDING * 2 * m.thickness)
 
 
 def test_append_path_follows_the_machine(monkeypatch):
@@ -990,7 +999,7 @@ def folded_mesh(count, thickness, squeeze, seed=3, curl=0.0):
 def test_mesh_near_list_and_layout_push_as_the_reference(parts, curl):
     """on an irregular mesh whose neighbours sit inside the list radius at rest, the
     build that drops them by the rest layout, with the near list appended, pushes
-    exactly like a brute-force pass: a squeezed, folded, jittered sheet, flat at
+    like a brute-force pass (to PUSH_ROUNDING): a squeezed, folded, jittered sheet, flat at
     rest or curled out of its plane (where the projection shortens distances)"""
     from clothsim.solver.selfcollide.nearlist import mesh_near
 
@@ -1006,7 +1015,7 @@ def test_mesh_near_list_and_layout_push_as_the_reference(parts, curl):
     P = planes(pos)
     lists, found = collide_in_place(P, rest, free, thickness, 3, lists)
     assert found == hits > 100
-    np.testing.assert_allclose(P.T, expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(P.T, expected, rtol=0, atol=PUSH_ROUNDING * reach)
     # the build listed only the pairs the layout keeps, plus the near list
     plain = NeighbourList.allocate(n, parts=parts, skin=0.5)
     collide_in_place(planes(pos), rest, free, thickness, 3, plain)

@@ -11,6 +11,14 @@ from ..shared import BLOCK
 NEAR = 5
 """grid offsets up to this many rows and columns may be checked as a stencil"""
 
+PUSH_DTYPE = np.float32
+"""the pushes and their counts are summed in single precision: with two threads
+each part's buffers are read and cleared by the other part, and half the bytes
+are half the cache lines that go from core to core every substep (figures:
+docs/performance.md, "Two cores near and far"). A push is at most the reach
+(millimetres), so single precision keeps it to a few times 1e-10 m; a count is
+a whole number, exact in single precision up to 2**24"""
+
 SPARSE_PAIRS = 64
 """when no part pushed more pairs than this, only their ends are moved, not
 every point: see :func:`apply_sparse`"""
@@ -65,9 +73,9 @@ class NeighbourList(NamedTuple):
     pairs: np.ndarray
     """the listed pairs, int32 (2, capacity), sorted by slack bucket"""
     push: np.ndarray
-    """each part's summed pushes [m], (parts, 3, N)"""
+    """each part's summed pushes [m], PUSH_DTYPE (parts, 3, N)"""
     count: np.ndarray
-    """each part's count of pushes per point, (parts, N)"""
+    """each part's count of pushes per point, PUSH_DTYPE (parts, N)"""
     meta: np.ndarray
     """the list's state, int64 (META_SIZE,): fields PAIRS, VALID, REBUILDS, COLS, SKIN, BUCKET + j"""
     near_offset: np.ndarray
@@ -135,8 +143,8 @@ class NeighbourList(NamedTuple):
             frame=np.zeros(4),
             centres=np.zeros((2, 3)),
             pairs=np.zeros((2, 4 * n), dtype=np.int32),
-            push=np.zeros((parts, 3, n)),
-            count=np.zeros((parts, n)),
+            push=np.zeros((parts, 3, n), dtype=PUSH_DTYPE),
+            count=np.zeros((parts, n), dtype=PUSH_DTYPE),
             meta=meta,
             near_offset=near_offset,
             near_weight=near_weight,

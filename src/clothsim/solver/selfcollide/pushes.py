@@ -80,15 +80,19 @@ def push_pair(P, a, b, reach, push, count, touched, k):
 
 @njit(cache=True, inline="always")
 def add_push(push, count, a, b, dx, dy, dz, s, one):
-    """Add (dx, dy, dz) * s to a's push and take it from b's; ``one`` to each count."""
-    push[0, a] += dx * s
-    push[1, a] += dy * s
-    push[2, a] += dz * s
-    push[0, b] -= dx * s
-    push[1, b] -= dy * s
-    push[2, b] -= dz * s
-    count[a] += one
-    count[b] += one
+    """Add (dx, dy, dz) * s to a's push and take it from b's; ``one`` to each count.
+    The push is rounded to the buffers' single precision (:data:`~.buffers.PUSH_DTYPE`)
+    before it is added, so that the sums stay in single precision: no conversion
+    of what is read to double and back."""
+    px, py, pz = np.float32(dx * s), np.float32(dy * s), np.float32(dz * s)
+    push[0, a] += px
+    push[1, a] += py
+    push[2, a] += pz
+    push[0, b] -= px
+    push[1, b] -= py
+    push[2, b] -= pz
+    count[a] += np.float32(one)
+    count[b] += np.float32(one)
 
 
 @njit(**KERNEL_OPTIONS)
