@@ -12,12 +12,14 @@ NEAR = 5
 """grid offsets up to this many rows and columns may be checked as a stencil"""
 
 PUSH_DTYPE = np.float32
-"""the pushes and their counts are summed in single precision: with two threads
-each part's buffers are read and cleared by the other part, and half the bytes
-are half the cache lines that go from core to core every substep (figures:
-docs/performance.md, "Two cores near and far"). A push is at most the reach
-(millimetres), so single precision keeps it to a few times 1e-10 m; a count is
-a whole number, exact in single precision up to 2**24"""
+"""the pushes and their counts are summed in single precision: the pushes land
+all over the buffers and the applying pass reads them whole, so half the bytes
+are half the cache lines to fetch on one thread and, with two, half the lines
+that go from core to core every substep, as each part's buffers are read and
+cleared by the other part (figures: docs/performance.md, "Two cores near and
+far"). A push is at most the reach (millimetres), so single precision keeps it
+to a few times 1e-10 m; a count is a whole number, exact in single precision up
+to 2**24"""
 
 SPARSE_PAIRS = 64
 """when no part pushed more pairs than this, only their ends are moved, not
