@@ -26,7 +26,9 @@ from clothsim.solver.selfcollide.nearstencil import COARSE_SKIN, NEAR_LEVELS, SK
 from clothsim.solver.selfcollide.slack import checked_pairs
 from clothsim.solver.shared import BLOCK
 from clothsim.solver.simd import FORCE_PORTABLE, has_compress
-from clothsim.solver.springs import CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer, integrate
+from clothsim.solver.springs import (AHEAD_STEP, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
+                                     gather_ahead, integrate)
+from clothsim.solver.step import _chunk_range
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
@@ -138,6 +140,36 @@ def test_slots_without_a_spring_add_no_force(nw, nh):
     run_integrate(P, L, np.ones(m.num_points), knobs(k_kind[SET_KIND], g, 0.7, 1.0), st, F)
     np.testing.assert_allclose((P - planes(pos)).T, reference_accelerations(pos, m, k_kind, g),
                                rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("nw,nh,parts", [(40, 30, 2), (70, 40, 3), (9, 6, 2)])
+def test_parts_move_their_points_as_the_whole_cloth_does(nw, nh, parts):
+    """cut into parts as the threads take them, each part leaving the first
+    ``ahead`` points of its range to gather_ahead: run the parts last to first
+    (a part's points moved before the part before it reads them, the worst
+    order threads could take) and the step is still the whole cloth's, bit
+    for bit. ``ahead`` covers the springs' reach and no more than a vector past it"""
+    m = grid_model(nw, nh)
+    st = stencil(m)
+    assert st.end.max() <= st.ahead < st.end.max() + AHEAD_STEP
+    rng = np.random.default_rng(5)
+    pos = m.rest_positions + rng.normal(0.0, 0.01, size=m.rest_positions.shape)
+    free = np.ones(m.num_points)
+    free[[0, nw - 1]] = 0.0
+    k = knobs(np.array([10.0, 10.0, 7.0, 7.0, 2.0, 2.0]), [0.0, -9.8, 0.0], 0.9, 1e-3)
+    n = m.num_points
+    P0, L0 = planes(pos), planes(m.rest_positions)
+    whole_P, whole_L = P0.copy(), L0.copy()
+    integrate(whole_P, whole_L, free, k, st, force_buffer(st, n), 0, n, 0)
+    P, L, F = P0.copy(), L0.copy(), force_buffer(st, n)
+    for t in reversed(range(parts)):
+        lo, hi = _chunk_range(n, parts, t)
+        integrate(P, L, free, k, st, F, lo, hi, lo if t == 0 else min(lo + st.ahead, hi))
+    for t in range(1, parts):
+        lo, hi = _chunk_range(n, parts, t)
+        gather_ahead(P, L, free, k, st, F, lo, min(lo + st.ahead, hi))
+    np.testing.assert_array_equal(P, whole_P)
+    np.testing.assert_array_equal(L, whole_L)
 
 
 def test_disabled_kind_adds_no_force():

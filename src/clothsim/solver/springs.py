@@ -43,6 +43,13 @@ SET_STEP = ((0, 1), (1, 0), (1, 1), (1, -1), (0, 2), (2, 0))
 CHUNK = 512
 """points per chunk of the force loop: their forces stay in cache until gathered"""
 
+AHEAD_STEP = 8
+"""``ahead`` is rounded up to this many points, a vector of doubles at 512
+bits. Rounded up to a CHUNK, as it was, one thread moved a whole chunk of the
+next part after the loop where the springs reach two rows and two points,
+all in lines the other core had just written and fetches back the next
+substep (docs/performance.md, 'The points ahead of a cut')"""
+
 NO_LIMIT = 1e30
 """the Provot limit where a set has no spring: never reached"""
 
@@ -79,7 +86,8 @@ class GridSprings(NamedTuple):
     """points in a grid row"""
     ahead: int
     """points past the end of a part that its last springs reach, rounded up to
-    a CHUNK: a thread moves them only once every part has its forces"""
+    AHEAD_STEP: they are moved only once every part has its forces, on one
+    thread after the parts' loop (see :func:`gather_ahead`)"""
 
 
 def build_stencil(rest_positions: np.ndarray, pinned: np.ndarray, rows: int, cols: int) -> GridSprings:
@@ -116,7 +124,7 @@ def build_stencil(rest_positions: np.ndarray, pinned: np.ndarray, rows: int, col
     wrap = wrap_columns(valid, count, cols)
     for arr in (start, end, count, valid, rest, limit, batch, share, wrap):
         arr.setflags(write=False)
-    ahead = int((end.max() + CHUNK - 1) // CHUNK * CHUNK)
+    ahead = int((end.max() + AHEAD_STEP - 1) // AHEAD_STEP * AHEAD_STEP)
     return GridSprings(start=start, end=end, count=count, valid=valid, rest=rest, limit=limit, batch=batch,
                        share=share, wrap=wrap, cols=int(cols), ahead=ahead)
 
@@ -176,8 +184,8 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     for lo in range(first, stop, CHUNK):
         hi = min(lo + CHUNK, stop)
         spring_forces(P, k_over_m, springs, F, lo, hi)
-        if lo >= moved:
-            verlet_gather(P, L, free, knobs, springs, F, lo, hi, True)
+        if hi > moved:
+            verlet_gather(P, L, free, knobs, springs, F, max(lo, moved), hi, True)
 
 
 @njit(**KERNEL_OPTIONS)
