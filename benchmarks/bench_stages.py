@@ -84,8 +84,9 @@ def _drift(P, lists, reach):
 
 @njit
 def _cells(P, radius, span, lists):
-    """the cell sort runs on one thread in either build"""
-    return sort_into_cells(P, radius, span, lists)
+    """the cell sort into copy 0, on one thread: with threads, each part sorts
+    into a copy of its own at the same time (GRID_COPIES)"""
+    return sort_into_cells(P, radius, span, lists, 0)
 
 
 WRAPPED = {parallel: [njit(parallel=parallel)(f) for f in (_springs, _provot, _self_collide, _drift)]

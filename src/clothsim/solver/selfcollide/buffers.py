@@ -28,6 +28,14 @@ every point: see :func:`apply_sparse`"""
 QUERY_SHARES = 4
 """shares of the list build per thread, where there is more than one"""
 
+GRID_COPIES = 4
+"""most copies of the cell grid: each of the first this many parts sorts the
+points into a copy of its own, all at once, and queries it. With one copy,
+sorted on one thread, every other part's query read the whole grid from that
+core's cache, on two threads a quarter of the query's time
+(docs/performance.md, 'A cell grid per part'); past this many parts the
+memory of a copy per part outweighs it, and the others share copy 0"""
+
 WIDE = 64
 """candidates tested together in a longer range: one bit each in a 64-bit word"""
 
@@ -56,16 +64,18 @@ class NeighbourList(NamedTuple):
     after each build (see :func:`~.slack.sort_by_slack`)."""
 
     cell_start: np.ndarray
-    """cell c holds slots ``cell_start[c] : cell_start[c+1]``, int64 (cells + 1,)"""
+    """per copy of the cell grid (see GRID_COPIES): cell c holds slots
+    ``cell_start[g, c] : cell_start[g, c+1]``, int64 (copies, cells + 1)"""
     search: np.ndarray
-    """per point: its cell and the cells it searches, int64 (SEARCH_ROWS, N): see
-    :func:`~.hashgrid.sort_into_cells`"""
+    """per copy and point: its cell and the cells it searches, int64 (copies,
+    SEARCH_ROWS, N): see :func:`~.hashgrid.sort_into_cells`"""
     order: np.ndarray
-    """the point in each slot, int32 (N + PAD,): past the points see ``_put``"""
+    """per copy: the point in each slot, int32 (copies, N + PAD): past the points see ``_put``"""
     slot: np.ndarray
-    """the slot of each point, int64 (N,)"""
+    """per copy: the slot of each point, int64 (copies, N)"""
     sorted_pos: np.ndarray
-    """per slot: position from the grid's corner, grid row and column, float32 (5, N + PAD)"""
+    """per copy and slot: position from the grid's corner, grid row and column,
+    float32 (copies, 5, N + PAD)"""
     reference: np.ndarray
     """the positions at the build, float32 from ``frame``'s origin, (3, N)"""
     frame: np.ndarray
@@ -135,12 +145,13 @@ class NeighbourList(NamedTuple):
         # padded: the single-precision stencil reads up to PAD pairs past the points
         near_weight = np.zeros((len(weight), n + PAD), dtype=np.uint8)
         near_weight[:, :n] = weight
+        copies = min(parts, GRID_COPIES)
         return cls(
-            cell_start=np.zeros(max(CELLS_PER_POINT * n, 64) + 1, dtype=np.int64),
-            search=np.zeros((SEARCH_ROWS, n), dtype=np.int64),
-            order=np.zeros(n + PAD, dtype=np.int32),
-            slot=np.zeros(n, dtype=np.int64),
-            sorted_pos=np.zeros((5, n + PAD), dtype=np.float32),
+            cell_start=np.zeros((copies, max(CELLS_PER_POINT * n, 64) + 1), dtype=np.int64),
+            search=np.zeros((copies, SEARCH_ROWS, n), dtype=np.int64),
+            order=np.zeros((copies, n + PAD), dtype=np.int32),
+            slot=np.zeros((copies, n), dtype=np.int64),
+            sorted_pos=np.zeros((copies, 5, n + PAD), dtype=np.float32),
             reference=np.zeros((3, n), dtype=np.float32),
             frame=np.zeros(4),
             centres=np.zeros((2, 3)),

@@ -73,8 +73,16 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     span2 = (reach + skin) ** 2 - reach * reach
     if fresh:
         radius = reach + skin
-        grid = sort_into_cells(P, radius, span, lists)
-        if grid[3] == 0.0:
+        # each of the first parts sorts the points into a copy of the grid of its
+        # own, all at the same time, so that its query reads the grid from its
+        # own cache (see GRID_COPIES); the others query copy 0
+        copies = lists.cell_start.shape[0]
+        grids = np.empty((copies, 8))
+        for t in prange(copies):
+            grid = sort_into_cells(P, radius, span, lists, t)
+            for c in range(8):  # by element: an array assignment compiles string helpers for its error
+                grids[t, c] = grid[c]
+        if grids[0, 3] == 0.0:
             meta[VALID] = 0
             return pairs, 0
         # the points are cut into more shares than parts, dealt out in turn: the
@@ -86,6 +94,8 @@ def self_collide(P, points, simulation_steps, lists, pairs):
         sparse = meta[PAIRS] < (DENSE_COMPRESSED if COMPRESS else DENSE_LIST) * n
         while True:  # once more with room for twice the largest share when one overflowed
             for t in prange(parts):
+                own = np.int64(t)  # prange's index is unsigned: with the 0, a float
+                grid = grids[own if own < copies else 0]
                 for j in range(t, shares, parts):
                     lo, hi = part_range(n, shares, j)
                     tally[j, 0] = query_points(grid, reach, radius, rest, lists, lo, hi, pairs,

@@ -44,7 +44,7 @@ def _cell(v):
 
 
 @njit(**EXACT_OPTIONS)
-def sort_into_cells(P, radius, span, lists):
+def sort_into_cells(P, radius, span, lists, copy):
     """Counting-sort the points into a dense grid of cells over their bounding box.
 
     Cells are ``CELL_FACTOR * radius`` wide where the buffer allows, coarser where the
@@ -64,15 +64,18 @@ def sort_into_cells(P, radius, span, lists):
     out here in a loop that vectorises rather than per point in the query,
     with a loop over the rows.
 
-    Returns the grid (x0, y0, z0, cell size, nx, ny, nz), or cell size 0 when
-    the points are not finite or spread wider than ``span``: no list then.
+    The arrays are copy ``copy`` of the :class:`~.buffers.NeighbourList`'s
+    (see :data:`~.buffers.GRID_COPIES`). Returns the grid (x0, y0, z0, cell
+    size, nx, ny, nz, copy), or cell size 0 when the points are not finite or
+    spread wider than ``span``: no list then.
     """
-    cell_start, search, order, slot = lists.cell_start, lists.search, lists.order, lists.slot
-    sorted_pos, cols = lists.sorted_pos, lists.meta[COLS]
+    cell_start, search, order, slot = lists.cell_start[copy], lists.search[copy], lists.order[copy], lists.slot[copy]
+    sorted_pos, cols = lists.sorted_pos[copy], lists.meta[COLS]
     n = P.shape[1]
     lo = np.empty(3)
     hi = np.empty(3)
-    grid = np.zeros(7)
+    grid = np.zeros(8)
+    grid[7] = copy
     if not bounds(P, lo, hi):
         return grid
     ext = max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2])

@@ -46,7 +46,7 @@ def build_list(P, rest, reach, radius, span, lists, pairs, sparse=True):
     grid is filled.
     Returns -1 when the points are not finite or spread wider than ``span``.
     """
-    grid = sort_into_cells(P, radius, span, lists)
+    grid = sort_into_cells(P, radius, span, lists, 0)
     if grid[3] == 0.0:
         return -1
     # the same argument types as the substep's call (no constants): one compile serves both
@@ -90,8 +90,10 @@ def query_points(grid, reach, radius, rest, lists, first, stop, pairs, base, cap
     indices: with signed ones numba adds a negative-index wraparound that
     turns the loads into gathers.
     """
-    cell_start, search, slot, order = lists.cell_start, lists.search, lists.slot, lists.order
-    sorted_pos, near_table, near_metric = lists.sorted_pos, lists.near_table, lists.near_metric
+    # the copy of the cell grid the sort filled (see GRID_COPIES)
+    g = np.int64(grid[7])
+    cell_start, search, slot, order = lists.cell_start[g], lists.search[g], lists.slot[g], lists.order[g]
+    sorted_pos, near_table, near_metric = lists.sorted_pos[g], lists.near_table, lists.near_metric
     size = grid[3]
     nx, ny, nz = np.int64(grid[4]), np.int64(grid[5]), np.int64(grid[6])
     # each coordinate from the corner is rounded by at most extent * 2**-24
