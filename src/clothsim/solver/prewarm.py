@@ -82,8 +82,8 @@ def calls(variant: str) -> list:
     from .wind import blow, blow_grid, wind_buffer
     from .groups import Knobs, Points, Scratch
     from .selfcollide import NeighbourList
-    from .selfcollide.collide import _append, _close_up, _copy, _copy_pairs, _even_segments, _share_segments
-    from .selfcollide.drift import _level_both, _to_single, drift_bound
+    from .selfcollide.collide import _append, _close_up, _copy_pairs, _even_segments, _share_segments
+    from .selfcollide.drift import _keep, _level_both, _to_single, drift_bound
     from .selfcollide.nearstencil import near_pushes
     from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
     from .selfcollide.slack import label_pairs
@@ -126,7 +126,7 @@ def calls(variant: str) -> list:
             (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, lists, zero, zero, f32)),
             (near_pushes, (P, 0.02, lists, zero, np.int64(1), True, 1.0, 1.0, f32, False)),
             (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
-            (_copy, (lists.pos32[:, :n], lists.reference)),
+            (_keep, (lists.pos32, lists.reference, zero, i64)),
             (_close_up, (lists.pairs, lists.tally, zero)),
             (_share_segments, (lists.tally, zero)),
             (_even_segments, (zero, np.int64(1))),

@@ -137,9 +137,8 @@ def self_collide(P, points, simulation_steps, lists, pairs):
         pairs = sort_by_slack(pairs, labels, segments, meta, parts)
         for c in range(3):
             frame[c] = P[c, 0]
-        extent = single_copy(P, frame, pos32, extent32)
+        extent = single_copy(P, frame, pos32, extent32, reference)
         frame[3] = extent
-        _copy(pos32[:, :n], reference)
         centres[:] = 0.0
         meta[VALID] = 1
         meta[REBUILDS] += 1
@@ -233,11 +232,3 @@ def _append(near, pairs, at):
         a, b = near[c], pairs[c]
         for j in range(near.shape[1]):
             b[at + j] = a[j]
-
-
-@njit(**KERNEL_OPTIONS)
-def _copy(src, dst):
-    for c in range(src.shape[0]):
-        a, b = src[c], dst[c]
-        for p in range(a.shape[0]):
-            b[p] = a[p]

@@ -147,16 +147,29 @@ def widened2(radius, extent):
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def single_copy(P, frame, Q, extent):
-    """P from the origin ``frame[:3]`` in single precision into ``Q``, cut into as many
-    parts as ``extent`` has (``prange`` where inlined into parallel code),
-    each noting the bits of its largest magnitude there; returns the largest."""
+def single_copy(P, frame, Q, extent, reference):
+    """P from the origin ``frame[:3]`` in single precision into ``Q`` and ``reference``
+    (the build's positions), cut into as many parts as ``extent`` has
+    (``prange`` where inlined into parallel code), each noting the bits of
+    its largest magnitude there; returns the largest. Each part copies its
+    own points into ``reference`` while they are in its cache: one thread
+    copying all of them afterwards read half from the other core."""
     parts = extent.shape[0]
     n = P.shape[1]
     for t in prange(parts):
         lo, hi = part_range(n, parts, t)
         extent[t] = _to_single(P, frame[0], frame[1], frame[2], Q, lo, hi)
+        _keep(Q, reference, lo, hi)
     return _largest(extent)
+
+
+@njit(**KERNEL_OPTIONS)
+def _keep(Q, reference, lo, hi):
+    """points ``lo:hi`` of ``Q`` into ``reference`` (3, N)"""
+    for c in range(3):
+        q, r = Q[c, lo:hi], reference[c, lo:hi]
+        for p in range(hi - lo):
+            r[p] = q[p]
 
 
 @njit(**EXACT_OPTIONS, inline="always")
