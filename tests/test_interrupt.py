@@ -25,6 +25,17 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 
 
+@pytest.fixture(autouse=True)
+def python_answers_ctrl_c():
+    """Python's own Ctrl-C handler in place, as in a terminal: a process started in
+    the background by a script (``cmd &``) inherits SIGINT ignored, Python leaves
+    it ignored, and the handlers these tests restore would be that"""
+    before = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 def test_ctrl_c_during_simulate_says_interrupted_and_exits_130():
     from clothsim import Simulation
 
