@@ -31,10 +31,10 @@ QUERY_SHARES = 4
 GRID_COPIES = 4
 """most copies of the cell grid: each of the first this many parts sorts the
 points into a copy of its own, all at once, and queries it. With one copy,
-sorted on one thread, every other part's query read the whole grid from that
-core's cache, on two threads a quarter of the query's time
-(docs/performance.md, 'A cell grid per part'); past this many parts the
-memory of a copy per part outweighs it, and the others share copy 0"""
+sorted on one thread, every other part's query first fetched the whole grid
+from that core's cache (figures: docs/performance.md, 'A cell grid per
+part'). A copy takes 136 bytes a point: past this many parts the others
+share copy 0"""
 
 WIDE = 64
 """candidates tested together in a longer range: one bit each in a 64-bit word"""
