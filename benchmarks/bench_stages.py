@@ -14,16 +14,17 @@ points or pairs) and nanoseconds per item.
   what a call from Python costs with no work to do, which each of these
   figures includes and the compiled substep does not pay;
 - ``selfCollision`` at ``--size`` (100 by default) after its 2 s fall and
-  settle, when the cloth lies piled up, on one thread and cut over numba's
-  threads: the springs with Verlet, the Provot pass, self-collision between
-  list builds, its drift test with the copy to single precision made beside
-  it, the cell sort of a build, and a whole build (the substep of
-  self-collision that makes a new list).
+  settle, when the cloth lies piled up (or after ``--frame`` frames: 12 at
+  90 frames a second finds it still falling, where two threads gain least),
+  on one thread and cut over numba's threads: the springs with Verlet, the
+  Provot pass, self-collision between list builds, its drift test with the
+  copy to single precision made beside it, the cell sort of a build, and a
+  whole build (the substep of self-collision that makes a new list).
 
 The stages are wrapped here the way the substep calls them (``prange`` over
 the parts), compiled apart from the solver's own frame loop.
 
-    python benchmarks/bench_stages.py [--size 100] [--rounds 5]
+    python benchmarks/bench_stages.py [--size 100] [--frame 12] [--rounds 5]
 """
 
 from __future__ import annotations
@@ -176,7 +177,7 @@ def spring_stages(rounds: int, info: dict) -> None:
           "threads": 1, "us_per_call": round(us, 2), **info})
 
 
-def piled_stages(size: int, rounds: int, info: dict) -> None:
+def piled_stages(size: int, rounds: int, info: dict, frame: int | None = None) -> None:
     grid = [f"cloth.num_width_points={size}", f"cloth.num_height_points={size}"]
     threads = numba.get_num_threads()
     sims = {t: Simulation.from_file(ROOT / "scenes" / "selfCollision.json", grid, threads=t)
@@ -185,7 +186,9 @@ def piled_stages(size: int, rounds: int, info: dict) -> None:
     # the threaded run's positions in the last bits, and its pile with them, so that
     # two trees compared would time different cloths
     lead = sims[1]
-    for _ in range(round(2.0 * lead.params.frames_per_sec) - 1):
+    frames = round(2.0 * lead.params.frames_per_sec) if frame is None else frame
+    info = {**info, "frame": frames}
+    for _ in range(frames - 1):
         lead.step()
     for sim in sims.values():
         sim.state.positions[:] = lead.state.positions
@@ -231,20 +234,24 @@ def piled_stages(size: int, rounds: int, info: dict) -> None:
     for t, (copy, calls) in stages.items():
         for stage, (_, _, work, unit) in calls.items():
             line(stage, "selfCollision", f"{size}x{size}", t, best[t, stage], work, unit, info)
-    substeps = round(2.0 * lead.params.frames_per_sec) * lead.params.simulation_steps
+    substeps = frames * lead.params.simulation_steps
     emit({"bench": "stage", "stage": "list", "scene": "selfCollision", "grid": f"{size}x{size}",
-          "pairs_piled": int(lead.solver.lists.meta[PAIRS]),
+          "pairs": int(lead.solver.lists.meta[PAIRS]),
           "rebuilds_per_100_substeps": round(100.0 * lead.neighbour_list_rebuilds / substeps, 2), **info})
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=100)
+    ap.add_argument("--frame", type=int, default=None,
+                    help="time the cloth after this many frames (default: the whole 2 s settle)")
     ap.add_argument("--rounds", type=int, default=5)
     args = ap.parse_args()
+    if args.frame is not None and args.frame < 1:
+        ap.error(f"--frame: expected a number of frames of 1 or more, got {args.frame}")
     info = machine()
     spring_stages(args.rounds, info)
-    piled_stages(args.size, args.rounds, info)
+    piled_stages(args.size, args.rounds, info, args.frame)
 
 
 if __name__ == "__main__":
