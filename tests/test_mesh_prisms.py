@@ -16,9 +16,9 @@ import trimesh
 
 from clothsim import Simulation
 from clothsim.scene import parse_scene
-from clothsim.solver.colliders.mesh import pack_meshes, pose_rows, with_hints
+from clothsim.solver.colliders.mesh import _grid_scalars, pack_meshes, pose_rows, with_hints
 from clothsim.solver.colliders.meshgrid import G_H
-from clothsim.solver.colliders.meshprism import P_DOWN, P_UP
+from clothsim.solver.colliders.meshprism import P_DOWN, P_ROUNDING, P_UP, rounding_heights
 from clothsim.standard_scenes import scene_path
 
 from .test_mesh_collider import EYE, MARGIN, Ctl, face_distance, planes, run, shape, sphere, square, static
@@ -192,6 +192,81 @@ def test_a_point_resting_on_its_triangle_is_placed_by_the_hint_alone():
     placed = np.all(got == want, axis=0)
     assert placed.mean() > 0.99, placed.mean()
     assert np.all(face_distance(ctl.mesh_tris, got.T[placed]) > 0.0)
+
+
+def heights_over(tris, n, seed, span):
+    """(L, P, triangle, h0, h1) for n points over random triangles of ``tris``, well
+    inside each, whose last position stands h0 off the triangle's plane and whose
+    position now h1 off it (both from 10**span[0] to 10**span[1] m, either side), moved a
+    little along the plane too"""
+    rng = np.random.default_rng(seed)
+    t = rng.integers(0, len(tris), n)
+    w = rng.dirichlet([4.0, 4.0, 4.0], n)
+    corners = tris[t, :9].reshape(n, 3, 3)
+    foot = np.einsum("nk,nkd->nd", w, corners)
+    normal = tris[t, 9:12]
+    h0 = 10.0 ** rng.uniform(*span, n) * rng.choice([-1.0, 1.0], n)
+    h1 = 10.0 ** rng.uniform(*span, n) * rng.choice([-1.0, 1.0], n)
+    along = rng.normal(scale=2e-5, size=(n, 3))
+    along -= (along * normal).sum(axis=1)[:, None] * normal
+    return planes(foot + h0[:, None] * normal), planes(foot + along + h1[:, None] * normal), t, h0, h1
+
+
+def test_crossings_told_by_heights_are_the_searchs_at_any_height():
+    """points over a mesh ball (closed, 20,480 triangles) and an open square, from
+    1e-16 to 1e-5 m (1e-9 to 1e-3 m) off the surface on either side, crossing it or not: with their
+    triangles as hints the collider pass puts every point where the search does,
+    bit for bit; and where both ends stand in the prism beyond the triangle's
+    rounding bound, the hint alone (the cells emptied: no search finds anything)
+    places each point that goes in as the search does, and leaves each that
+    crosses nothing"""
+    cases = ((sphere(radius=0.5, subdivisions=5), True, (-16, -5)), (square(half=0.5), False, (-9, -3)))
+    for mesh, closed, span in cases:
+        n = 4000
+        plain = Ctl(meshes=static(friction=0.4)[None], **pack_meshes([mesh]))
+        L, P, t, h0, h1 = heights_over(plain.mesh_tris, n, 7, span)
+        want = run(plain, P.copy(), L)
+        assert np.any(want != P)
+        ctl = hinted([mesh], static(friction=0.4), n)
+        ctl.mesh_hints[0] = t
+        np.testing.assert_array_equal(run(ctl._replace(mesh_hints=ctl.mesh_hints.copy()), P.copy(), L), want)
+        bound = ctl.mesh_prisms[t, P_ROUNDING]
+        assert np.all(bound > 0.0) and np.all(bound < 1e-12), bound.max()
+        # beyond the bound, and where the pass's other tests let the hint decide: an open
+        # mesh leaves a start within its plane slack to the search, and a closed one a
+        # placement nearer the plane than the rounding of its coordinates
+        floor = np.maximum(2.0 * bound, _grid_scalars(ctl.mesh_grid[0])[13] if not closed else 1e-12)
+        rows = ctl.mesh_prisms[t]
+        in_prism = np.ones(n, dtype=bool)
+        for X in (L, P):
+            for e in range(3):
+                in_prism &= (X.T * rows[:, 4 * e:4 * e + 3]).sum(axis=1) >= rows[:, 4 * e + 3]
+        told = (np.abs(h0) > floor) & (np.abs(h1) > floor) & in_prism
+        going_in = told & (h0 > 0.0) & (h1 < 0.0)
+        missing = told & (np.sign(h0) == np.sign(h1)) & (h0 > 0.0 if closed else True)
+        blind = ctl._replace(mesh_cells=np.zeros_like(ctl.mesh_cells))
+        got = run(blind._replace(mesh_hints=ctl.mesh_hints.copy()), P.copy(), L)
+        assert going_in.sum() > 100 and missing.sum() > 100, (going_in.sum(), missing.sum())
+        assert np.all(want[:, going_in] != P[:, going_in])
+        np.testing.assert_array_equal(got[:, going_in | missing], want[:, going_in | missing])
+
+
+def test_the_rounding_bound_grows_with_a_triangles_size_place_and_thinness():
+    """a triangle's rounding bound: a few hundred machine epsilons of its coordinates for
+    a well-shaped triangle near the origin, larger far from it and for a thin one, and
+    inf for one with no area"""
+    eps = np.finfo(float).eps
+
+    def bound(corners, cap=0.01):
+        row = np.zeros((1, 13))
+        row[0, :9] = np.ravel(corners)
+        return rounding_heights(row, cap)[0]
+
+    fair = bound([[0, 0, 0], [0.02, 0, 0], [0.01, 0.017, 0]])
+    assert 10 * eps < fair < 1000 * eps
+    assert bound([[100, 0, 0], [100.02, 0, 0], [100.01, 0.017, 0]]) > 100 * fair
+    assert bound([[0, 0, 0], [0.02, 0, 0], [0.01, 0.0001, 0]]) > 10 * fair
+    assert bound([[0, 0, 0], [0.02, 0, 0], [0.04, 0, 0]]) == np.inf
 
 
 def test_a_simulation_with_hints_runs_as_it_would_without_them(tmp_path):

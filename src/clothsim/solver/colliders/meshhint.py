@@ -4,9 +4,9 @@ A cloth resting on a mesh crosses the same triangle at each point in contact,
 substep after substep: :mod:`.mesh` keeps that triangle as the point's hint,
 and the triangle's clear prism (:mod:`.meshprism`) settles the point's
 segment without a search wherever both its ends lie in it. Per point that is
-a few hundred floating-point operations (the turns into the mesh's frame,
-six prism sides, two crossing tests and the placement) on a triangle's rows
-read from wherever the hint points.
+a hundred or two floating-point operations (the turns into the mesh's frame,
+six prism sides, the heights over the triangle's plane and the placement) on a
+triangle's rows read from wherever the hint points.
 
 In scalar code each such point cost some 60 ns. Here the hinted points go
 in blocks of BLOCK: their positions and their triangles' rows are copied
@@ -17,7 +17,10 @@ its own row sit side by side in one row of ``mesh_prisms`` (256 bytes),
 which the copy reads whole, eight points at a time, and turns into the
 scratch's columns in registers (:func:`..simd.rows_to_columns`). Every test is made for
 every point and the outcome selected, so the answer is the scalar tests',
-to the bit: the same operations in the same order, without fastmath.
+to the bit: the same operations in the same order, without fastmath, but for
+the search's crossing test on the hinted triangle, which the heights of the
+segment's ends tell wherever they stand beyond the rounding of that test
+(:func:`_by_heights`); nearer the plane the point goes to the search.
 
 The scratch is one flat array indexed ``row * BLOCK + column`` with BLOCK a
 constant: LLVM then sees every read as one object at fixed offsets, and the
@@ -33,9 +36,9 @@ from numba import njit
 
 from ..shared import EXACT_OPTIONS
 from ..simd import ROWS8, rows_to_columns
-from .meshgrid import BARY_TOL, T_NORMAL, T_OFFSET, put_off
+from .meshgrid import T_NORMAL, T_OFFSET, put_off
 from .meshpose import to_rest, to_world
-from .meshprism import P_DOWN, P_TRI, P_UP, ROW_FIELDS
+from .meshprism import P_DOWN, P_ROUNDING, P_TRI, P_UP, ROW_FIELDS
 
 BLOCK = 64
 """hinted points decided together: the scratch (38 x 64 doubles, 19 KB) stays in L1"""
@@ -64,36 +67,32 @@ def _at(row, j):
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _crosses(S, j, seg, entry_only, slack):
-    """Whether the segment ``seg`` (x0, y0, z0, dx, dy, dz; rest frame) crosses the
-    triangle in column j: :func:`.mesh._hit`'s ``s <= 1``, every test made and and-ed
-    rather than returned from, with the same operations in the same order."""
-    x0, y0, z0, dx, dy, dz = seg
-    pnx, pny, pnz = S[_at(S_TRI + T_NORMAL, j)], S[_at(S_TRI + T_NORMAL + 1, j)], S[_at(S_TRI + T_NORMAL + 2, j)]
-    h0 = pnx * x0 + pny * y0 + pnz * z0 - S[_at(S_TRI + T_OFFSET, j)]
-    h1 = h0 + (pnx * dx + pny * dy + pnz * dz)
+def _by_heights(heights, slack, bound, entry_only):
+    """(crosses, told) for a segment with both ends in a triangle's prism: whether it
+    crosses the triangle as the search's test (:func:`.mesh._hit`, ``s <= 1``) says,
+    and whether that is told here. ``heights``: the start's and the end's heights
+    over the plane [m] (n . q - offset) and the end's as start + n . (end - start),
+    as the search makes them; ``slack`` the search's plane slack, ``bound`` the
+    triangle's rounding bound (:func:`.meshprism.rounding_heights`).
+
+    The search first tests the plane with the slack, which is made here as it
+    makes it: a segment it rejects crosses nothing. One it lets through crosses
+    where its ends lie on the two sides (for a closed mesh, only going in): both
+    in the prism, its crossing with the plane lies inside the triangle, more than
+    the prism's inset from its edges, far beyond the test's barycentric slack,
+    and the test's signs of the area times each height are those of the heights
+    wherever both ends stand more than ``bound`` off the plane. Nearer than
+    that, it is not told (the search decides)."""
+    h0, h1, h1s = heights
     if entry_only:
-        plane = (h0 >= -slack) & (h1 <= slack)
+        plane = (h0 >= -slack) & (h1s <= slack)
     else:
-        plane = ((h0 > slack) & (h1 > slack) | (h0 < -slack) & (h1 < -slack)) ^ True
-    ax, ay, az = S[_at(S_TRI, j)], S[_at(S_TRI + 1, j)], S[_at(S_TRI + 2, j)]
-    e1x, e1y, e1z = S[_at(S_TRI + 3, j)] - ax, S[_at(S_TRI + 4, j)] - ay, S[_at(S_TRI + 5, j)] - az
-    e2x, e2y, e2z = S[_at(S_TRI + 6, j)] - ax, S[_at(S_TRI + 7, j)] - ay, S[_at(S_TRI + 8, j)] - az
-    px = dy * e2z - dz * e2y
-    py = dz * e2x - dx * e2z
-    pz = dx * e2y - dy * e2x
-    det = e1x * px + e1y * py + e1z * pz
-    facing = (det > 0.0) if entry_only else (abs(det) > 0.0)
-    inv = 1.0 / det
-    tx, ty, tz = x0 - ax, y0 - ay, z0 - az
-    u = (tx * px + ty * py + tz * pz) * inv
-    qx = ty * e1z - tz * e1y
-    qy = tz * e1x - tx * e1z
-    qz = tx * e1y - ty * e1x
-    v = (dx * qx + dy * qy + dz * qz) * inv
-    s = (e2x * qx + e2y * qy + e2z * qz) * inv
-    return (plane & facing & (u >= -BARY_TOL) & (u <= 1.0 + BARY_TOL) & (v >= -BARY_TOL)
-            & (u + v <= 1.0 + BARY_TOL) & (s >= 0.0) & (s <= 1.0))
+        plane = ((h0 > slack) & (h1s > slack) | (h0 < -slack) & (h1s < -slack)) ^ True
+    going_in = (h0 > bound) & (h1 < -bound)
+    going_out = (h0 < -bound) & (h1 > bound)
+    sides = going_in if entry_only else going_in | going_out
+    off = ((h0 > bound) | (h0 < -bound)) & ((h1 > bound) | (h1 < -bound))
+    return plane & sides, (plane ^ True) | off
 
 
 @njit(**EXACT_OPTIONS, inline="always")
@@ -114,11 +113,13 @@ def _decide(S, O, count, frames, tiny, closed, placing):
     ends in the triangle's clear prism on the side it came from, so that it
     crosses nothing and ends outside (O's rows O_X.. then hold where it goes,
     world frame [m]); 0 where the prism cannot tell (an end outside it, a
-    placement on the triangle within rounding), for the search. ``frames``: the
-    mesh's poses (before, now); ``tiny``: the plane slack of its grid [m].
+    placement on the triangle within rounding, an end within the triangle's
+    rounding bound of its plane), for the search. ``frames``: the mesh's poses
+    (before, now); ``tiny``: the plane slack of its grid [m].
 
-    Where it tells, the answer is the search's: the same crossing test on the
-    triangle, and no other triangle that the search could find first. A
+    Where it tells, the answer is the search's: the crossing the search's test on
+    the triangle finds (:func:`_by_heights`), and no other triangle that the
+    search could find first. A
     placement nearer the plane than the slack (a point resting on the surface
     stays as near as it was) is taken only where a search after it, from the
     last position, would not find the triangle again (the search would then
@@ -148,22 +149,27 @@ def _decide(S, O, count, frames, tiny, closed, placing):
             nothing = nothing | (start & (side * h1 > tiny) & (side * h1 <= room))
         dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
         slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(dx) + abs(dy) + abs(dz))
-        crosses = _crosses(S, j, (x0, y0, z0, dx, dy, dz), closed, slack)
+        # the crossing of the hinted triangle, told by the ends' heights where both lie
+        # in its prism and beyond the rounding bound (see _by_heights)
+        bound = S[_at(S_PRISM + P_ROUNDING, j)]
+        crosses, sure = _by_heights((h0, h1, h0 + (nx * dx + ny * dy + nz * dz)), slack, bound, closed)
         # the search's placement, then the friction rule, as the kernels make them
         x, y, z = put_off((nx, ny, nz, w), (x0, y0, z0, x1, y1, z1), margin)
         if friction:
             x, y, z = x0 + keep * (x - x0), y0 + keep * (y - y0), z0 + keep * (z - z0)
-        hc = side * (nx * x + ny * y + nz * z - w)
+        hx = nx * x + ny * y + nz * z - w
+        hc = side * hx
         ex, ey, ez = x - x0, y - y0, z - z0
         slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(ex) + abs(ey) + abs(ez))
-        again = _crosses(S, j, (x0, y0, z0, ex, ey, ez), closed, slack)
+        again, told = _by_heights((h0, hx, h0 + (nx * ex + ny * ey + nz * ez)), slack, bound, closed)
         clear = (hc > tiny) | ((hc > 1e-13 * (abs(x) + abs(y) + abs(z))) & (again ^ True))
+        sure = sure & (told | (hc > tiny))  # the second crossing counts only so near the plane
         placed = inside & (nothing ^ True) & start & crosses & (hc <= room) & clear
         wx, wy, wz = to_world(now, x, y, z)
         O[_at(O_X, j)] = wx
         O[_at(O_X + 1, j)] = wy
         O[_at(O_X + 2, j)] = wz
-        O[_at(O_ROUTE, j)] = 1.0 if inside & nothing else (2.0 if placed else 0.0)
+        O[_at(O_ROUTE, j)] = 1.0 if inside & nothing else (2.0 if placed & sure else 0.0)
 
 
 @njit(**EXACT_OPTIONS)

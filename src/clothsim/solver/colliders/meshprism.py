@@ -17,8 +17,10 @@ triangle T of ``mesh_tris`` a row of ``mesh_prisms`` float64 (T, ROW_FIELDS):
   the inset; capped at PRISM_CAP
   cells of the mesh's grid, 0 where another triangle reaches T's plane inside
   it (a mesh that cuts itself, a triangle given twice).
-- then T's own row of ``mesh_tris`` (from column P_TRI) and zeros: the hint
-  pass reads the prism and the triangle as one row of 256 bytes.
+- then T's own row of ``mesh_tris`` (from column P_TRI), the height within
+  which rounding could put a point on either side of T's plane as the search's
+  crossing test sees it (P_ROUNDING, :func:`rounding_heights`), and zeros: the
+  hint pass reads the prism and the triangle as one row of 256 bytes.
 
 A segment whose ends both lie in the narrower prism, between ``-down`` and
 ``up``, can meet no triangle but T, and none that a search's slack would
@@ -35,7 +37,7 @@ from numba import njit
 
 from ..shared import EXACT_OPTIONS
 from ..simd import ROW_WIDTH
-from .meshgrid import (G_CELL0, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_TRI0, T_NORMAL, T_OFFSET,
+from .meshgrid import (G_CELL0, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_TRI0, T_NORMAL, T_OFFSET, TRI_FIELDS,
                        cell_coord, plane_slack)
 
 PRISM_FIELDS = 14
@@ -46,9 +48,19 @@ P_TRI = PRISM_FIELDS
 """where a row of ``mesh_prisms`` holds its triangle's row of ``mesh_tris`` (13 columns),
 after the prism: the hint pass reads both as one row"""
 
+P_ROUNDING = P_TRI + TRI_FIELDS
+"""the column after the triangle's row: how far [m] a point's computed height over the
+triangle's plane may be from the side the Moller-Trumbore test puts it on, for
+points in the prism (:func:`rounding_heights`)"""
+
 ROW_FIELDS = ROW_WIDTH
-"""the columns of a row of ``mesh_prisms``: the prism, the triangle's row, zeros; 256
-bytes, which the hint pass reads as four whole vectors (:func:`..simd.rows_to_columns`)"""
+"""the columns of a row of ``mesh_prisms``: the prism, the triangle's row, its rounding
+bound, zeros; 256 bytes, which the hint pass reads as four whole vectors
+(:func:`..simd.rows_to_columns`)"""
+
+ROUNDING_FACTOR = 64.0
+"""the safety factor of :func:`rounding_heights` over the few roundings each product
+and sum of the tests it bounds can make"""
 
 EDGE_INSET = 1e-5
 """how far the prism's sides stand inside the triangle's edges, in units of its
@@ -217,4 +229,34 @@ def pack_prisms(packed: dict) -> np.ndarray:
     for g in packed["mesh_grid"]:
         _fill_prisms(tris, g, packed["mesh_cells"], packed["mesh_items"], prisms)
     prisms[:, P_TRI:P_TRI + tris.shape[1]] = tris
+    for g in packed["mesh_grid"]:
+        t0, t1 = max(int(g[G_TRI0]), 0), min(int(g[G_TRI0] + g[G_NTRI]), tris.shape[0])
+        prisms[t0:t1, P_ROUNDING] = rounding_heights(tris[t0:t1], PRISM_CAP * g[G_H])
     return prisms
+
+
+def rounding_heights(tris: np.ndarray, cap: float) -> np.ndarray:
+    """For each row of ``tris`` (``mesh_tris``, rest frame [m]) a height [m] beyond
+    which a point's height over the triangle's plane, as the hint pass computes it
+    (n . q - offset), has the sign that the Moller-Trumbore test of the search gives
+    it, for any segment with both ends in the triangle's prism no more than ``cap``
+    [m] off its plane: inf where the triangle has no area.
+
+    The test's products are of the edges, the offset of a point from a corner and
+    the segment, each rounded relative to its size (eps); its verdict on a side
+    turns on twice the area times a height, so its error, in height, is eps times
+    those sizes times L^2 / (2 area) (L the longest edge; bounded for a triangle
+    with a prism, which slivers do not get). The height the hint pass computes
+    is off by eps times the point's coordinates. ROUNDING_FACTOR times the sum
+    of both is the bound."""
+    eps = np.finfo(np.float64).eps
+    a, b, c = tris[:, 0:3], tris[:, 3:6], tris[:, 6:9]
+    longest = np.sqrt(np.max([np.sum((b - a) ** 2, axis=1), np.sum((c - b) ** 2, axis=1),
+                              np.sum((a - c) ** 2, axis=1)], axis=0))
+    twice_area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shape = np.where(twice_area > 0.0, longest * longest / twice_area, np.inf)
+    reach = longest + 2.0 * cap  # a point's offset from a corner, a segment in the prism
+    size = 3.0 * (np.max(np.abs(tris[:, 0:9]), axis=1) + reach)  # a point's coordinates, summed
+    bound = ROUNDING_FACTOR * eps * (size + 3.0 * shape * reach)
+    return np.where(np.isfinite(bound), bound, np.inf)
