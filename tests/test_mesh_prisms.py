@@ -323,7 +323,7 @@ def test_a_hint_that_could_not_tell_is_dropped_and_a_crossing_gives_one():
 ROWS_CHECK = """
 import numpy as np
 from numba import njit
-from clothsim.solver.simd import rows_to_columns
+from clothsim.solver.simd import ROW_WIDTH, rows_to_columns
 
 @njit
 def moved(table, rows, dst, at, stride):
@@ -331,15 +331,15 @@ def moved(table, rows, dst, at, stride):
         rows_to_columns(table, rows, j, dst, at + j, stride)
 
 rng = np.random.default_rng(4)
-table = rng.normal(size=(50, 32))
-table[3, 5], table[7, 30] = np.nan, -0.0
+table = rng.normal(size=(50, ROW_WIDTH))
+table[3, 5], table[7, ROW_WIDTH - 2] = np.nan, -0.0
 rows = rng.integers(0, 50, 24).astype(np.uint64)
 rows[:2] = 3, 7
 dst = np.full(40 * 29 + 5, 9.0)
 moved(table, rows, dst, 5, 29)
 want = np.full_like(dst, 9.0)
 for j in range(24):
-    want[5 + j + 29 * np.arange(32)] = table[rows[j]]
+    want[5 + j + 29 * np.arange(ROW_WIDTH)] = table[rows[j]]
 print(want.tobytes() == dst.tobytes())
 """
 

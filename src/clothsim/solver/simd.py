@@ -184,8 +184,8 @@ def close_lanes(typingctx, qx, qy, qz, weight, a, b, limit2):
 ROWS8 = 8
 """the rows :func:`rows_to_columns` moves at once: eight doubles a vector"""
 
-ROW_WIDTH = 32
-"""the doubles of each row :func:`rows_to_columns` moves: four vectors of eight"""
+ROW_WIDTH = 24
+"""the doubles of each row :func:`rows_to_columns` moves: three vectors of eight"""
 
 
 def _transpose8(builder, rows):
@@ -219,13 +219,13 @@ def rows_to_columns(typingctx, table, rows, j, dst, at, stride):
     """Rows ``rows[j + i]`` (i < ROWS8) of the float64 (T, ROW_WIDTH) C-ordered
     ``table`` written as columns: ``dst[at + c * stride + i] = table[rows[j + i],
     c]`` for every c < ROW_WIDTH, into the float64 flat ``dst``. Each row is read
-    as four whole vectors and each block of eight by eight is transposed in
+    as ROW_WIDTH / 8 whole vectors and each block of eight by eight is transposed in
     registers, where numba's own loop gathers the table one double at a time.
     The values are moved, never computed: the same bits. ``rows`` is uint64
     (N,); nothing is bounds-checked."""
     if not (isinstance(table, types.Array) and table.ndim == 2 and table.dtype == types.float64
             and table.layout == "C"):
-        raise TypingError("rows_to_columns takes a C-ordered float64 (T, 32) table")
+        raise TypingError(f"rows_to_columns takes a C-ordered float64 (T, {ROW_WIDTH}) table")
     if not (isinstance(rows, types.Array) and rows.ndim == 1 and rows.dtype == types.uint64):
         raise TypingError("rows_to_columns takes uint64 (N,) row numbers")
     if not (isinstance(dst, types.Array) and dst.ndim == 1 and dst.dtype == types.float64 and dst.layout == "C"):

@@ -13,7 +13,7 @@ in blocks of BLOCK: their positions and their triangles' rows are copied
 into a scratch, one row per quantity (``S_*``), and one loop without
 branches (:func:`_decide`) runs over the block's columns, which LLVM turns
 into vector code (four points at once with AVX2). A triangle's prism and
-its own row sit side by side in one row of ``mesh_prisms`` (256 bytes),
+its plane sit side by side in one row of ``mesh_prisms`` (192 bytes),
 which the copy reads whole, eight points at a time, and turns into the
 scratch's columns in registers (:func:`..simd.rows_to_columns`). Every test is made for
 every point and the outcome selected, so the answer is the scalar tests',
@@ -36,9 +36,9 @@ from numba import njit
 
 from ..shared import EXACT_OPTIONS
 from ..simd import ROWS8, rows_to_columns
-from .meshgrid import T_NORMAL, T_OFFSET, put_off
+from .meshgrid import put_off
 from .meshpose import to_rest, to_world
-from .meshprism import P_DOWN, P_ROUNDING, P_TRI, P_UP, ROW_FIELDS
+from .meshprism import P_DOWN, P_NORMAL, P_OFFSET, P_ROUNDING, P_UP, ROW_FIELDS
 
 BLOCK = 64
 """hinted points decided together: the scratch (38 x 64 doubles, 19 KB) stays in L1"""
@@ -49,11 +49,10 @@ its last point again): the vector loops then end without a scalar remainder, whi
 cost some 35 ns a column (eight doubles a vector with AVX-512; a divisor of BLOCK)"""
 
 S_LAST, S_NOW, S_PRISM = 0, 3, 6
-S_TRI = S_PRISM + P_TRI
 S_ROWS = S_PRISM + ROW_FIELDS
 """the scratch's rows: a point's last (or reference) position (3) and its position
 now (3), world frame [m]; its triangle's row of ``mesh_prisms``: the prism (14), the
-triangle's row of ``mesh_tris`` (13), zeros"""
+triangle's plane (4), its rounding bound, zeros"""
 
 O_X, O_ROUTE, O_ROWS = 0, 3, 4
 """the results' rows: where a placed point goes (3, world frame [m]); its route"""
@@ -132,8 +131,8 @@ def _decide(S, O, count, frames, tiny, closed, placing):
         x1, y1, z1 = to_rest(now, S[_at(S_NOW, j)], S[_at(S_NOW + 1, j)], S[_at(S_NOW + 2, j)])
         inside = _in_prism(S, j, x0, y0, z0) & _in_prism(S, j, x1, y1, z1)
         up, down = S[_at(S_PRISM + P_UP, j)], S[_at(S_PRISM + P_DOWN, j)]
-        nx, ny, nz = S[_at(S_TRI + T_NORMAL, j)], S[_at(S_TRI + T_NORMAL + 1, j)], S[_at(S_TRI + T_NORMAL + 2, j)]
-        w = S[_at(S_TRI + T_OFFSET, j)]
+        nx, ny, nz = S[_at(S_PRISM + P_NORMAL, j)], S[_at(S_PRISM + P_NORMAL + 1, j)], S[_at(S_PRISM + P_NORMAL + 2, j)]
+        w = S[_at(S_PRISM + P_OFFSET, j)]
         h0 = nx * x0 + ny * y0 + nz * z0 - w
         h1 = nx * x1 + ny * y1 + nz * z1 - w
         nothing = (h0 > tiny) & (h0 <= up) & (h1 > tiny) & (h1 <= up)
@@ -176,11 +175,11 @@ def _decide(S, O, count, frames, tiny, closed, placing):
 def _gather(S, P, L, prisms, hints, k, which, lo, tri):
     """Column j of the scratch S filled for point ``lo + which[j]`` (all of ``which``, at
     most BLOCK): its positions from L and P (3, N) and its hinted triangle's row of
-    ``prisms`` (``mesh_prisms``: the prism and the triangle). ``tri`` (BLOCK,) uint64
+    ``prisms`` (``mesh_prisms``: the prism and the triangle's plane). ``tri`` (BLOCK,) uint64
     is room for the triangles' numbers. Eight points' rows at a time are read
     whole and turned into columns in registers (:func:`..simd.rows_to_columns`):
-    a copy one double at a time, even as a vector loop, gathered 27 scattered
-    doubles a point and took twice as long. A remainder of fewer than eight
+    a copy one double at a time, even as a vector loop, gathered each of a
+    point's doubles on its own and took twice as long. A remainder of fewer than eight
     columns (none where the caller pads to PAD) is copied one double at a time."""
     m = which.shape[0]
     for j in range(m):

@@ -17,10 +17,11 @@ triangle T of ``mesh_tris`` a row of ``mesh_prisms`` float64 (T, ROW_FIELDS):
   the inset; capped at PRISM_CAP
   cells of the mesh's grid, 0 where another triangle reaches T's plane inside
   it (a mesh that cuts itself, a triangle given twice).
-- then T's own row of ``mesh_tris`` (from column P_TRI), the height within
-  which rounding could put a point on either side of T's plane as the search's
-  crossing test sees it (P_ROUNDING, :func:`rounding_heights`), and zeros: the
-  hint pass reads the prism and the triangle as one row of 256 bytes.
+- then T's plane as in ``mesh_tris`` (its unit normal and offset, from column
+  P_NORMAL), the height within which rounding could put a point on either side
+  of T's plane as the search's crossing test sees it (P_ROUNDING,
+  :func:`rounding_heights`), and zeros: the hint pass reads all it needs of a
+  triangle as one row of 192 bytes.
 
 A segment whose ends both lie in the narrower prism, between ``-down`` and
 ``up``, can meet no triangle but T, and none that a search's slack would
@@ -37,25 +38,22 @@ from numba import njit
 
 from ..shared import EXACT_OPTIONS
 from ..simd import ROW_WIDTH
-from .meshgrid import (G_CELL0, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_TRI0, T_NORMAL, T_OFFSET, TRI_FIELDS,
+from .meshgrid import (G_CELL0, G_DIMS, G_H, G_HI, G_INV_H, G_NTRI, G_ORIGIN, G_TRI0, T_NORMAL, T_OFFSET,
                        cell_coord, plane_slack)
 
 PRISM_FIELDS = 14
 P_UP, P_DOWN = 12, 13
 """the columns of a row of ``mesh_prisms``: three edge planes (m (3), d each), up, down"""
 
-P_TRI = PRISM_FIELDS
-"""where a row of ``mesh_prisms`` holds its triangle's row of ``mesh_tris`` (13 columns),
-after the prism: the hint pass reads both as one row"""
-
-P_ROUNDING = P_TRI + TRI_FIELDS
-"""the column after the triangle's row: how far [m] a point's computed height over the
-triangle's plane may be from the side the Moller-Trumbore test puts it on, for
-points in the prism (:func:`rounding_heights`)"""
+P_NORMAL, P_OFFSET, P_ROUNDING = PRISM_FIELDS, PRISM_FIELDS + 3, PRISM_FIELDS + 4
+"""the columns after the prism: the triangle's unit normal (3) and offset, as in
+``mesh_tris``, then how far [m] a point's computed height over the triangle's
+plane may be from the side the Moller-Trumbore test puts it on, for points in the
+prism (:func:`rounding_heights`)"""
 
 ROW_FIELDS = ROW_WIDTH
-"""the columns of a row of ``mesh_prisms``: the prism, the triangle's row, its rounding
-bound, zeros; 256 bytes, which the hint pass reads as four whole vectors
+"""the columns of a row of ``mesh_prisms``: the prism, the plane, the rounding bound,
+zeros; 192 bytes, which the hint pass reads as three whole vectors
 (:func:`..simd.rows_to_columns`)"""
 
 ROUNDING_FACTOR = 64.0
@@ -222,13 +220,14 @@ def _fill_prisms(tris, g, cells, items, prisms):
 def pack_prisms(packed: dict) -> np.ndarray:
     """``mesh_prisms`` (T, ROW_FIELDS) for the arrays of :func:`.meshgrid.pack_grids`
     (an edge plane no point lies over, for a triangle without a prism), each row
-    followed by its triangle's row of ``mesh_tris``."""
+    followed by its triangle's plane and rounding bound."""
     tris = packed["mesh_tris"]
     prisms = np.zeros((tris.shape[0], ROW_FIELDS))
     prisms[:, 3] = np.inf
     for g in packed["mesh_grid"]:
         _fill_prisms(tris, g, packed["mesh_cells"], packed["mesh_items"], prisms)
-    prisms[:, P_TRI:P_TRI + tris.shape[1]] = tris
+    prisms[:, P_NORMAL:P_NORMAL + 3] = tris[:, T_NORMAL:T_NORMAL + 3]
+    prisms[:, P_OFFSET] = tris[:, T_OFFSET]
     for g in packed["mesh_grid"]:
         t0, t1 = max(int(g[G_TRI0]), 0), min(int(g[G_TRI0] + g[G_NTRI]), tris.shape[0])
         prisms[t0:t1, P_ROUNDING] = rounding_heights(tris[t0:t1], PRISM_CAP * g[G_H])
