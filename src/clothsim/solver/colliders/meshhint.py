@@ -41,7 +41,7 @@ from .meshpose import to_rest, to_world
 from .meshprism import P_DOWN, P_NORMAL, P_OFFSET, P_ROUNDING, P_UP, ROW_FIELDS
 
 BLOCK = 64
-"""hinted points decided together: the scratch (38 x 64 doubles, 19 KB) stays in L1"""
+"""hinted points decided together: the scratch (30 x 64 doubles, 15 KB) stays in L1"""
 
 PAD = 8
 """a block's columns are decided in whole multiples of PAD (the last block padded with
@@ -151,7 +151,9 @@ def _decide(S, O, count, frames, tiny, closed, placing):
         # the crossing of the hinted triangle, told by the ends' heights where both lie
         # in its prism and beyond the rounding bound (see _by_heights)
         bound = S[_at(S_PRISM + P_ROUNDING, j)]
-        crosses, sure = _by_heights((h0, h1, h0 + (nx * dx + ny * dy + nz * dz)), slack, bound, closed)
+        # (where it is not told, crosses is False: the point is not placed here, and the
+        # search decides it)
+        crosses, _ = _by_heights((h0, h1, h0 + (nx * dx + ny * dy + nz * dz)), slack, bound, closed)
         # the search's placement, then the friction rule, as the kernels make them
         x, y, z = put_off((nx, ny, nz, w), (x0, y0, z0, x1, y1, z1), margin)
         if friction:
@@ -162,7 +164,7 @@ def _decide(S, O, count, frames, tiny, closed, placing):
         slack = tiny + 1e-12 * (abs(x0) + abs(y0) + abs(z0) + abs(ex) + abs(ey) + abs(ez))
         again, told = _by_heights((h0, hx, h0 + (nx * ex + ny * ey + nz * ez)), slack, bound, closed)
         clear = (hc > tiny) | ((hc > 1e-13 * (abs(x) + abs(y) + abs(z))) & (again ^ True))
-        sure = sure & (told | (hc > tiny))  # the second crossing counts only so near the plane
+        sure = told | (hc > tiny)  # the second crossing counts only so near the plane
         placed = inside & (nothing ^ True) & start & crosses & (hc <= room) & clear
         wx, wy, wz = to_world(now, x, y, z)
         O[_at(O_X, j)] = wx

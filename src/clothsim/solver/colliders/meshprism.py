@@ -224,11 +224,10 @@ def pack_prisms(packed: dict) -> np.ndarray:
     tris = packed["mesh_tris"]
     prisms = np.zeros((tris.shape[0], ROW_FIELDS))
     prisms[:, 3] = np.inf
-    for g in packed["mesh_grid"]:
-        _fill_prisms(tris, g, packed["mesh_cells"], packed["mesh_items"], prisms)
     prisms[:, P_NORMAL:P_NORMAL + 3] = tris[:, T_NORMAL:T_NORMAL + 3]
     prisms[:, P_OFFSET] = tris[:, T_OFFSET]
     for g in packed["mesh_grid"]:
+        _fill_prisms(tris, g, packed["mesh_cells"], packed["mesh_items"], prisms)
         t0, t1 = max(int(g[G_TRI0]), 0), min(int(g[G_TRI0] + g[G_NTRI]), tris.shape[0])
         prisms[t0:t1, P_ROUNDING] = rounding_heights(tris[t0:t1], PRISM_CAP * g[G_H])
     return prisms
