@@ -74,6 +74,39 @@ def _onto(a0, a1, h, margin, keep):
 
 
 @njit(cache=True, inline="always")
+def _axis(a0, a1, c, h, margin, keep):
+    """(out, a): one coordinate of the vector pass's rule, for a point from a0 to a1
+    along an axis of a box centred at c with half size h: out, whether a0 lies
+    outside the slab |a - c| < h; a, where the point ends if it entered through
+    the face on a0's side (out: the face, as :func:`_onto` puts it) or through
+    another (a1 itself), moved back toward a0 by keep (1 - friction). Both
+    cases share the friction's one multiply-add, and the aligned box's pass
+    calls it in the world's coordinates, c its centre's."""
+    e = a0 - c
+    g = abs(e) - h
+    face = c + np.copysign(h + min(margin, g), e)
+    out = g >= 0.0
+    return out, a0 + keep * ((face if out else a1) - a0)
+
+
+@njit(cache=True, inline="always")
+def _write_or_mark(planes, marked, p, inside, outs, new, old):
+    """The end of the vector pass's rule for point p of ``planes`` (x, y, z; m):
+    where it ends ``inside`` (and is free) having been outside along exactly
+    one axis (``outs``, three flags), it is written ``new``; where it ends
+    inside otherwise, ``marked[p]`` is set for the scalar pass. Returns 1 where
+    marked, else 0."""
+    out_u, out_v, out_w = outs
+    one = (out_u ^ out_v ^ out_w) & ((out_u & out_v & out_w) ^ True)
+    simple = inside & one
+    write_point(planes, p, simple, new, old)
+    # the rest that end inside: near an edge or corner, or inside from before
+    mark = inside & (simple ^ True)
+    marked[p] = mark
+    return np.int64(mark)
+
+
+@njit(cache=True, inline="always")
 def _place(u0, v0, w0, u1, v1, w1, hu, hv, hw, margin, keep):
     """(hit, u, v, w): where a point that went from q0 to q1 (box frame) ends. Into the
     box from outside: at the face its segment met (:func:`_onto`; the other
@@ -155,62 +188,93 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     face every substep) is placed; ``marked`` is set for the others that end
     inside, and, where some point moved farther than the box's thinnest side,
     for those whose segment's bounding box meets the box (:func:`_mark_through`).
-    ``aligned``: the box's axes are the world's, and the loop skips the turns
-    into and out of its frame. Returns how many points it marked."""
+    ``aligned``: the box's axes are the world's. A still box whose axes are the
+    world's takes a loop of its own, without the turns into and out of its
+    frame or the carry (:func:`_aligned_loop`); any other, the general one
+    (:func:`_turned_loop`): written as branches inside one loop, LLVM computed
+    both sides for every point. Returns how many points it marked."""
     n = marked.shape[0]
-    x, y, z = P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n]
-    rx, ry, rz = R[0, lo:lo + n], R[1, lo:lo + n], R[2, lo:lo + n]
+    planes = (P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n])
+    refs = (R[0, lo:lo + n], R[1, lo:lo + n], R[2, lo:lo + n])
     fr = free[lo:lo + n]
-    cx, cy, cz = row[0], row[1], row[2]
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
-                                                    row[9], row[10], row[11])
-    hu, hv, hw = row[12], row[13], row[14]
-    keep = 1.0 - row[15] if friction else 0.0
-    margin = row[16]
-    a = carry_of(row, COLUMNS)
-    # a point that passed right through ends outside: only a move longer than the
-    # box's thinnest side can, so the points are looked at again only after one
-    thinnest2 = 4.0 * min(hu, min(hv, hw)) ** 2
-    far = 0
-    count = 0
-    for p in range(n):
-        mx, my, mz = rx[p], ry[p], rz[p]
-        if carry:
-            mx, my, mz = carry_point(a, mx, my, mz)
-        xp, yp, zp = x[p], y[p], z[p]
-        dx, dy, dz = xp - cx, yp - cy, zp - cz
-        ex, ey, ez = mx - cx, my - cy, mz - cz
-        if aligned:
-            u1, v1, w1, u0, v0, w0 = dx, dy, dz, ex, ey, ez
-        else:
-            u1 = r00 * dx + r10 * dy + r20 * dz
-            u0 = r00 * ex + r10 * ey + r20 * ez
-            v1 = r01 * dx + r11 * dy + r21 * dz
-            v0 = r01 * ex + r11 * ey + r21 * ez
-            w1 = r02 * dx + r12 * dy + r22 * dz
-            w0 = r02 * ex + r12 * ey + r22 * ez
-        out_u, out_v, out_w = abs(u0) >= hu, abs(v0) >= hv, abs(w0) >= hw
-        inside1 = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw)
-        simple = inside1 & (np.int32(out_u) + np.int32(out_v) + np.int32(out_w) == 1) & (fr[p] != 0.0)
-        fu = _onto(u0, u1, hu, margin, keep) if out_u else u0 + keep * (u1 - u0)
-        fv = _onto(v0, v1, hv, margin, keep) if out_v else v0 + keep * (v1 - v0)
-        fw = _onto(w0, w1, hw, margin, keep) if out_w else w0 + keep * (w1 - w0)
-        if aligned:
-            nx, ny, nz = cx + fu, cy + fv, cz + fw
-        else:
-            nx = cx + r00 * fu + r01 * fv + r02 * fw
-            ny = cy + r10 * fu + r11 * fv + r12 * fw
-            nz = cz + r20 * fu + r21 * fv + r22 * fw
-        write_point((x, y, z), p, simple, (nx, ny, nz), (xp, yp, zp))
-        # the rest that end inside: near an edge or corner, or inside from before
-        mark = inside1 & (fr[p] != 0.0) & (simple ^ True)
-        marked[p] = mark
-        count += np.int64(mark)
-        du, dv, dw = u1 - u0, v1 - v0, w1 - w0
-        far += np.int64(du * du + dv * dv + dw * dw >= thinnest2)
+    box_ = (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10], row[11],
+            row[12], row[13], row[14], 1.0 - row[15] if friction else 0.0, row[16])
+    if aligned and not carry:
+        count, far = _aligned_loop(planes, refs, fr, marked, box_)
+    else:  # a still box's carry is the identity, exact in floating point
+        count, far = _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS))
     if far > 0:
         count += _mark_through(P, R, free, row, lo, marked, carry)
     return count
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _thinnest2(box_):
+    """the square of the box's thinnest side: a point that passed right through it
+    ends outside, and only a move longer than that can"""
+    return 4.0 * min(box_[12], min(box_[13], box_[14])) ** 2
+
+
+@njit(**KERNEL_OPTIONS)
+def _aligned_loop(planes, refs, fr, marked, box_):
+    """:func:`_common`'s loop for a still box whose axes are the world's (``box_``:
+    centre (3), axes (9), half sizes (3), 1 - friction, margin): the rule in
+    world coordinates about the centre. Returns (how many it marked, how many
+    moved farther than the box's thinnest side)."""
+    x, y, z = planes
+    rx, ry, rz = refs
+    cx, cy, cz = box_[0], box_[1], box_[2]
+    hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]
+    thinnest2 = _thinnest2(box_)
+    count = 0
+    far = 0
+    for p in range(marked.shape[0]):  # vectorised
+        mx, my, mz = rx[p], ry[p], rz[p]
+        xp, yp, zp = x[p], y[p], z[p]
+        inside = (abs(xp - cx) < hu) & (abs(yp - cy) < hv) & (abs(zp - cz) < hw) & (fr[p] != 0.0)
+        out_u, nx = _axis(mx, xp, cx, hu, margin, keep)
+        out_v, ny = _axis(my, yp, cy, hv, margin, keep)
+        out_w, nz = _axis(mz, zp, cz, hw, margin, keep)
+        count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), (nx, ny, nz), (xp, yp, zp))
+        du, dv, dw = xp - mx, yp - my, zp - mz
+        far += np.int64(du * du + dv * dv + dw * dw >= thinnest2)
+    return count, far
+
+
+@njit(**KERNEL_OPTIONS)
+def _turned_loop(planes, refs, fr, marked, box_, a):
+    """:func:`_common`'s loop for any box: each reference position carried by the
+    box's motion ``a`` (:func:`.motion_rows.carry_of`), both ends turned into
+    the box's frame, the rule there, and the result turned back. Returns as
+    :func:`_aligned_loop`."""
+    x, y, z = planes
+    rx, ry, rz = refs
+    cx, cy, cz, r00, r01, r02, r10, r11, r12, r20, r21, r22, hu, hv, hw, keep, margin = box_
+    thinnest2 = _thinnest2(box_)
+    count = 0
+    far = 0
+    for p in range(marked.shape[0]):  # vectorised
+        mx, my, mz = carry_point(a, rx[p], ry[p], rz[p])
+        xp, yp, zp = x[p], y[p], z[p]
+        dx, dy, dz = xp - cx, yp - cy, zp - cz
+        ex, ey, ez = mx - cx, my - cy, mz - cz
+        u1 = r00 * dx + r10 * dy + r20 * dz
+        u0 = r00 * ex + r10 * ey + r20 * ez
+        v1 = r01 * dx + r11 * dy + r21 * dz
+        v0 = r01 * ex + r11 * ey + r21 * ez
+        w1 = r02 * dx + r12 * dy + r22 * dz
+        w0 = r02 * ex + r12 * ey + r22 * ez
+        inside = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw) & (fr[p] != 0.0)
+        out_u, fu = _axis(u0, u1, 0.0, hu, margin, keep)
+        out_v, fv = _axis(v0, v1, 0.0, hv, margin, keep)
+        out_w, fw = _axis(w0, w1, 0.0, hw, margin, keep)
+        nx = cx + r00 * fu + r01 * fv + r02 * fw
+        ny = cy + r10 * fu + r11 * fv + r12 * fw
+        nz = cz + r20 * fu + r21 * fv + r22 * fw
+        count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), (nx, ny, nz), (xp, yp, zp))
+        du, dv, dw = xp - mx, yp - my, zp - mz
+        far += np.int64(du * du + dv * dv + dw * dw >= thinnest2)
+    return count, far
 
 
 @njit(**KERNEL_OPTIONS)
