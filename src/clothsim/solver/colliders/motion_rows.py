@@ -32,8 +32,14 @@ def frame_poses(animation, pivot, t0: float, dt: float, substeps: int):
     """(R_now (T, 3, 3), o_now (T, 3), carry (T, CARRY)) of one frame's substeps, as
     :func:`clothsim.motion.slot_poses` gives them but sampled in compiled code:
     a frame's control is made anew every frame, and numpy's small calls cost
-    more than the substeps' collisions. T is 1 for no animation or a still one."""
+    more than the substeps' collisions. T is 1 for no animation or a still one,
+    and at least 2 for a moving one, also in a frame of one substep: the kernels
+    take T > 1 to mean that a collider moves."""
     R, o, carry = frame_poses_both(animation, pivot, t0, dt, substeps)
+    if carry.shape[0] == 1 and animation is not None and not animation.is_still:
+        # a moving collider's frame of one substep: two slots, the same twice, so
+        # that T > 1 still tells the kernels it moves (they then apply its carry)
+        return R[1:].repeat(2, axis=0), o[1:].repeat(2, axis=0), carry.repeat(2, axis=0)
     return R[1:], o[1:], carry
 
 
