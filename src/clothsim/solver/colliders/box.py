@@ -74,34 +74,35 @@ def _onto(a0, a1, h, margin, keep):
 
 
 @njit(cache=True, inline="always")
-def _axis(a0, a1, c, h, margin, keep):
-    """(out, a): one coordinate of the vector pass's rule, for a point from a0 to a1
-    along an axis of a box centred at c with half size h: out, whether a0 lies
-    outside the slab |a - c| < h; a, where the point ends if it entered through
-    the face on a0's side (out: the face, as :func:`_onto` puts it) or through
-    another (a1 itself), moved back toward a0 by keep (1 - friction). Both
-    cases share the friction's one multiply-add, and the aligned box's pass
-    calls it in the world's coordinates, c its centre's."""
-    e = a0 - c
-    g = abs(e) - h
-    face = c + np.copysign(h + min(margin, g), e)
-    out = g >= 0.0
-    return out, a0 + keep * ((face if out else a1) - a0)
+def _axis(a0, a1, c, h, reach, keep):
+    """(out, a, d): one coordinate of the vector pass's rule, for a point from a0 to
+    a1 along an axis of a box centred at c with half size h: out, whether a0
+    lies outside the slab |a - c| < h; a, where the point ends if it entered
+    through the face on a0's side (out: the face, margin off it, or as far
+    as a0 was if nearer, which is a0 clamped to ``reach``, the slab widened
+    by the margin, (lo, hi)) or through another (a1 itself), moved back
+    toward a0 by keep (1 - friction); d, the move a1 - a0. The aligned box's
+    pass calls it in the world's coordinates, c its centre's."""
+    d = a1 - a0
+    out = abs(a0 - c) >= h
+    face = min(max(a0, reach[0]), reach[1])
+    return out, a0 + keep * ((face - a0) if out else d), d
 
 
 @njit(cache=True, inline="always")
-def _write_or_mark(planes, marked, p, inside, outs, new, old):
+def _write_or_mark(planes, marked, p, inside, outs, far, new, old):
     """The end of the vector pass's rule for point p of ``planes`` (x, y, z; m):
     where it ends ``inside`` (and is free) having been outside along exactly
-    one axis (``outs``, three flags), it is written ``new``; where it ends
-    inside otherwise, ``marked[p]`` is set for the scalar pass. Returns 1 where
-    marked, else 0."""
+    one axis (``outs``, three flags), and moved no farther than the box's
+    thinnest side (not ``far``), it is written ``new``; ``marked[p]`` is set
+    for the scalar pass where it ends inside otherwise (near an edge or
+    corner, or inside from before) or moved farther (it may have passed
+    through). Returns 1 where marked, else 0."""
     out_u, out_v, out_w = outs
     one = (out_u ^ out_v ^ out_w) & ((out_u & out_v & out_w) ^ True)
-    simple = inside & one
+    simple = inside & one & (far ^ True)
     write_point(planes, p, simple, new, old)
-    # the rest that end inside: near an edge or corner, or inside from before
-    mark = inside & (simple ^ True)
+    mark = (inside & (one ^ True)) | far
     marked[p] = mark
     return np.int64(mark)
 
@@ -119,7 +120,9 @@ def _place(u0, v0, w0, u1, v1, w1, hu, hv, hw, margin, keep):
     lo_w, hi_w = _slab(w0, w1, hw)
     t_in = max(lo_u, max(lo_v, lo_w))
     t_out = min(hi_u, min(hi_v, hi_w))
-    entered = outside0 & (t_in <= t_out) & (t_in <= 1.0)
+    # the line meets the box over [t_in, t_out]; the segment from outside enters it
+    # only ahead of its start (not where the line behind it passes through)
+    entered = outside0 & (t_in <= t_out) & (t_in <= 1.0) & (t_in >= 0.0)
     on_u = lo_u >= t_in
     on_v = (not on_u) & (lo_v >= t_in)
     on_w = (not on_u) & (not on_v)
@@ -145,10 +148,10 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
     and the friction rule where ``friction`` (see the two kernels).
 
     Two passes a box. A branch-free one over every point (:func:`_common`, it
-    vectorises) places the common case and marks the rest whose segment's
-    bounding box, in the box's frame, overlaps the box (near an edge or
-    corner, a fast point, a point inside from before); the second places the
-    marked few (:func:`_place`)."""
+    vectorises) places the common case and marks the rest that end inside
+    (near an edge or corner, or inside from before) and those that moved
+    farther than the box's thinnest side (they may have gone through it);
+    the second places the marked few (:func:`_place`), exactly."""
     rows = boxes[min(s, boxes.shape[0] - 1)]
     marked = np.empty(max(hi - lo, 0), dtype=np.bool_)
     for k in range(rows.shape[0]):
@@ -186,8 +189,8 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     ``lo:lo + len(marked)``: a point that went in through the one face its
     reference position was outside of (a cloth resting on a box crosses its
     face every substep) is placed; ``marked`` is set for the others that end
-    inside, and, where some point moved farther than the box's thinnest side,
-    for those whose segment's bounding box meets the box (:func:`_mark_through`).
+    inside, and for those that moved farther than the box's thinnest side
+    (only such a move can go right through the box and end outside).
     ``aligned``: the box's axes are the world's. A still box whose axes are the
     world's takes a loop of its own, without the turns into and out of its
     frame or the carry (:func:`_aligned_loop`); any other, the general one
@@ -200,12 +203,9 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     box_ = (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10], row[11],
             row[12], row[13], row[14], 1.0 - row[15] if friction else 0.0, row[16])
     if aligned and not carry:
-        count, far = _aligned_loop(planes, refs, fr, marked, box_)
-    else:  # a still box's carry is the identity, exact in floating point
-        count, far = _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS))
-    if far > 0:
-        count += _mark_through(P, R, free, row, lo, marked, carry)
-    return count
+        return _aligned_loop(planes, refs, fr, marked, box_)
+    # a still box's carry is the identity, exact in floating point
+    return _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS))
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -219,92 +219,79 @@ def _thinnest2(box_):
 def _aligned_loop(planes, refs, fr, marked, box_):
     """:func:`_common`'s loop for a still box whose axes are the world's (``box_``:
     centre (3), axes (9), half sizes (3), 1 - friction, margin): the rule in
-    world coordinates about the centre. Returns (how many it marked, how many
-    moved farther than the box's thinnest side)."""
+    world coordinates about the centre. Returns how many it marked."""
     x, y, z = planes
     rx, ry, rz = refs
     cx, cy, cz = box_[0], box_[1], box_[2]
     hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]
+    reach_u = (cx - (hu + margin), cx + (hu + margin))
+    reach_v = (cy - (hv + margin), cy + (hv + margin))
+    reach_w = (cz - (hw + margin), cz + (hw + margin))
     thinnest2 = _thinnest2(box_)
     count = 0
-    far = 0
     for p in range(marked.shape[0]):  # vectorised
         mx, my, mz = rx[p], ry[p], rz[p]
         xp, yp, zp = x[p], y[p], z[p]
-        inside = (abs(xp - cx) < hu) & (abs(yp - cy) < hv) & (abs(zp - cz) < hw) & (fr[p] != 0.0)
-        out_u, nx = _axis(mx, xp, cx, hu, margin, keep)
-        out_v, ny = _axis(my, yp, cy, hv, margin, keep)
-        out_w, nz = _axis(mz, zp, cz, hw, margin, keep)
-        count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), (nx, ny, nz), (xp, yp, zp))
-        du, dv, dw = xp - mx, yp - my, zp - mz
-        far += np.int64(du * du + dv * dv + dw * dw >= thinnest2)
-    return count, far
+        free_ = fr[p] != 0.0
+        inside = (abs(xp - cx) < hu) & (abs(yp - cy) < hv) & (abs(zp - cz) < hw) & free_
+        out_u, nx, du = _axis(mx, xp, cx, hu, reach_u, keep)
+        out_v, ny, dv = _axis(my, yp, cy, hv, reach_v, keep)
+        out_w, nz, dw = _axis(mz, zp, cz, hw, reach_w, keep)
+        far = (du * du + dv * dv + dw * dw >= thinnest2) & free_
+        count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), far, (nx, ny, nz),
+                                (xp, yp, zp))
+    return count
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _frame_maps(box_, a):
+    """(ref, end, back): three affine maps in the 12 numbers of
+    :func:`.motion_rows.carry_of`, for ``box_`` (see :func:`_aligned_loop`) and its
+    carry ``a``: a reference position carried and turned into the box's frame
+    (the carry composed with the turn, one map instead of two), a position
+    turned into the box's frame, and a point of the box's frame back into
+    the world's."""
+    cx, cy, cz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = box_[:12]
+    tx, ty, tz = a[9] - cx, a[10] - cy, a[11] - cz
+    ref = (r00 * a[0] + r10 * a[3] + r20 * a[6], r00 * a[1] + r10 * a[4] + r20 * a[7],
+           r00 * a[2] + r10 * a[5] + r20 * a[8],
+           r01 * a[0] + r11 * a[3] + r21 * a[6], r01 * a[1] + r11 * a[4] + r21 * a[7],
+           r01 * a[2] + r11 * a[5] + r21 * a[8],
+           r02 * a[0] + r12 * a[3] + r22 * a[6], r02 * a[1] + r12 * a[4] + r22 * a[7],
+           r02 * a[2] + r12 * a[5] + r22 * a[8],
+           r00 * tx + r10 * ty + r20 * tz, r01 * tx + r11 * ty + r21 * tz, r02 * tx + r12 * ty + r22 * tz)
+    end = (r00, r10, r20, r01, r11, r21, r02, r12, r22,
+           -(r00 * cx + r10 * cy + r20 * cz), -(r01 * cx + r11 * cy + r21 * cz), -(r02 * cx + r12 * cy + r22 * cz))
+    back = (r00, r01, r02, r10, r11, r12, r20, r21, r22, cx, cy, cz)
+    return ref, end, back
 
 
 @njit(**KERNEL_OPTIONS)
 def _turned_loop(planes, refs, fr, marked, box_, a):
     """:func:`_common`'s loop for any box: each reference position carried by the
-    box's motion ``a`` (:func:`.motion_rows.carry_of`), both ends turned into
-    the box's frame, the rule there, and the result turned back. Returns as
-    :func:`_aligned_loop`."""
+    box's motion ``a`` (:func:`.motion_rows.carry_of`) and turned into the
+    box's frame in one map, the end turned too, the rule there, and the
+    result turned back (:func:`_frame_maps`). Returns as :func:`_aligned_loop`."""
     x, y, z = planes
     rx, ry, rz = refs
-    cx, cy, cz, r00, r01, r02, r10, r11, r12, r20, r21, r22, hu, hv, hw, keep, margin = box_
+    hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]
+    ref, end, back = _frame_maps(box_, a)
+    reach_u, reach_v, reach_w = (-(hu + margin), hu + margin), (-(hv + margin), hv + margin), (-(hw + margin),
+                                                                                                hw + margin)
     thinnest2 = _thinnest2(box_)
     count = 0
-    far = 0
     for p in range(marked.shape[0]):  # vectorised
-        mx, my, mz = carry_point(a, rx[p], ry[p], rz[p])
+        u0, v0, w0 = carry_point(ref, rx[p], ry[p], rz[p])
         xp, yp, zp = x[p], y[p], z[p]
-        dx, dy, dz = xp - cx, yp - cy, zp - cz
-        ex, ey, ez = mx - cx, my - cy, mz - cz
-        u1 = r00 * dx + r10 * dy + r20 * dz
-        u0 = r00 * ex + r10 * ey + r20 * ez
-        v1 = r01 * dx + r11 * dy + r21 * dz
-        v0 = r01 * ex + r11 * ey + r21 * ez
-        w1 = r02 * dx + r12 * dy + r22 * dz
-        w0 = r02 * ex + r12 * ey + r22 * ez
-        inside = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw) & (fr[p] != 0.0)
-        out_u, fu = _axis(u0, u1, 0.0, hu, margin, keep)
-        out_v, fv = _axis(v0, v1, 0.0, hv, margin, keep)
-        out_w, fw = _axis(w0, w1, 0.0, hw, margin, keep)
-        nx = cx + r00 * fu + r01 * fv + r02 * fw
-        ny = cy + r10 * fu + r11 * fv + r12 * fw
-        nz = cz + r20 * fu + r21 * fv + r22 * fw
-        count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), (nx, ny, nz), (xp, yp, zp))
-        du, dv, dw = xp - mx, yp - my, zp - mz
-        far += np.int64(du * du + dv * dv + dw * dw >= thinnest2)
-    return count, far
-
-
-@njit(**KERNEL_OPTIONS)
-def _mark_through(P, R, free, row, lo, marked, carry):
-    """Also mark, for the box of ``row``, every free point whose segment's bounding
-    box in the box's frame meets the box: those that may have passed through it
-    in one substep (a fast point, a thin box); returns how many it marked (some
-    perhaps marked already: the caller only asks whether any are)."""
-    n = marked.shape[0]
-    count = 0
-    cx, cy, cz = row[0], row[1], row[2]
-    r00, r01, r02, r10, r11, r12, r20, r21, r22 = (row[3], row[4], row[5], row[6], row[7], row[8],
-                                                    row[9], row[10], row[11])
-    hu, hv, hw = row[12], row[13], row[14]
-    a = carry_of(row, COLUMNS)
-    for q in range(n):
-        p = lo + q
-        mx, my, mz = R[0, p], R[1, p], R[2, p]
-        if carry:
-            mx, my, mz = carry_point(a, mx, my, mz)
-        dx, dy, dz = P[0, p] - cx, P[1, p] - cy, P[2, p] - cz
-        ex, ey, ez = mx - cx, my - cy, mz - cz
-        u1, u0 = r00 * dx + r10 * dy + r20 * dz, r00 * ex + r10 * ey + r20 * ez
-        v1, v0 = r01 * dx + r11 * dy + r21 * dz, r01 * ex + r11 * ey + r21 * ez
-        w1, w0 = r02 * dx + r12 * dy + r22 * dz, r02 * ex + r12 * ey + r22 * ez
-        inside1 = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw)
-        through = ((min(u0, u1) < hu) & (max(u0, u1) > -hu) & (min(v0, v1) < hv) & (max(v0, v1) > -hv)
-                   & (min(w0, w1) < hw) & (max(w0, w1) > -hw) & (free[p] != 0.0) & (inside1 ^ True))
-        marked[q] = marked[q] | through
-        count += np.int64(through)
+        u1, v1, w1 = carry_point(end, xp, yp, zp)
+        free_ = fr[p] != 0.0
+        inside = (abs(u1) < hu) & (abs(v1) < hv) & (abs(w1) < hw) & free_
+        out_u, fu, du = _axis(u0, u1, 0.0, hu, reach_u, keep)
+        out_v, fv, dv = _axis(v0, v1, 0.0, hv, reach_v, keep)
+        out_w, fw, dw = _axis(w0, w1, 0.0, hw, reach_w, keep)
+        far = (du * du + dv * dv + dw * dw >= thinnest2) & free_
+        count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), far, carry_point(back, fu, fv, fw),
+                                (xp, yp, zp))
     return count
 
 
