@@ -276,8 +276,9 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     rx, ry, rz = refs
     hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]
     ref, end, back = _frame_maps(box_, a)
-    reach_u, reach_v, reach_w = (-(hu + margin), hu + margin), (-(hv + margin), hv + margin), (-(hw + margin),
-                                                                                                hw + margin)
+    reach_u = (-(hu + margin), hu + margin)
+    reach_v = (-(hv + margin), hv + margin)
+    reach_w = (-(hw + margin), hw + margin)
     thinnest2 = _thinnest2(box_)
     count = 0
     for p in range(marked.shape[0]):  # vectorised
