@@ -64,13 +64,12 @@ def _slab(a0, a1, h):
 
 
 @njit(cache=True, inline="always")
-def _onto(a0, a1, h, margin, keep):
-    """the coordinate along the face axis of a point that entered through the face on
-    a0's side: a1 put on the face, margin off it (or as far as a0 was, if nearer: a
-    point resting within the margin must not bounce off it), then back toward a0 by
-    keep (1 - friction)"""
-    face = np.copysign(h + min(margin, abs(a0) - h), a0)
-    return a0 + keep * (face - a0)
+def _face(a0, reach):
+    """where a point that entered through the face on its reference coordinate a0's
+    side goes along that axis: on the face, margin off it, or as far as a0 was if
+    nearer (a point resting within the margin must not bounce off it); that is,
+    a0 clamped to ``reach`` (lo, hi), the slab widened by the margin"""
+    return min(max(a0, reach[0]), reach[1])
 
 
 @njit(cache=True, inline="always")
@@ -78,15 +77,13 @@ def _axis(a0, a1, c, h, reach, keep):
     """(out, a, d): one coordinate of the vector pass's rule, for a point from a0 to
     a1 along an axis of a box centred at c with half size h: out, whether a0
     lies outside the slab |a - c| < h; a, where the point ends if it entered
-    through the face on a0's side (out: the face, margin off it, or as far
-    as a0 was if nearer, which is a0 clamped to ``reach``, the slab widened
-    by the margin, (lo, hi)) or through another (a1 itself), moved back
+    through the face on a0's side (out: :func:`_face`, ``reach`` the slab
+    widened by the margin) or through another (a1 itself), moved back
     toward a0 by keep (1 - friction); d, the move a1 - a0. The aligned box's
     pass calls it in the world's coordinates, c its centre's."""
     d = a1 - a0
     out = abs(a0 - c) >= h
-    face = min(max(a0, reach[0]), reach[1])
-    return out, a0 + keep * ((face - a0) if out else d), d
+    return out, a0 + keep * ((_face(a0, reach) - a0) if out else d), d
 
 
 @njit(cache=True, inline="always")
@@ -110,7 +107,7 @@ def _write_or_mark(planes, marked, p, inside, outs, far, new, old):
 @njit(cache=True, inline="always")
 def _place(u0, v0, w0, u1, v1, w1, hu, hv, hw, margin, keep):
     """(hit, u, v, w): where a point that went from q0 to q1 (box frame) ends. Into the
-    box from outside: at the face its segment met (:func:`_onto`; the other
+    box from outside: at the face its segment met (:func:`_face`; the other
     coordinates by the friction rule); inside already and still: out through the
     nearest face, margin outside, with no friction; anything else: no hit."""
     outside0 = (abs(u0) >= hu) | (abs(v0) >= hv) | (abs(w0) >= hw)
@@ -127,9 +124,9 @@ def _place(u0, v0, w0, u1, v1, w1, hu, hv, hw, margin, keep):
     on_v = (not on_u) & (lo_v >= t_in)
     on_w = (not on_u) & (not on_v)
     if entered:
-        u = _onto(u0, u1, hu, margin, keep) if on_u else u0 + keep * (u1 - u0)
-        v = _onto(v0, v1, hv, margin, keep) if on_v else v0 + keep * (v1 - v0)
-        w = _onto(w0, w1, hw, margin, keep) if on_w else w0 + keep * (w1 - w0)
+        u = u0 + keep * ((_face(u0, (-hu - margin, hu + margin)) if on_u else u1) - u0)
+        v = v0 + keep * ((_face(v0, (-hv - margin, hv + margin)) if on_v else v1) - v0)
+        w = w0 + keep * ((_face(w0, (-hw - margin, hw + margin)) if on_w else w1) - w0)
         return True, u, v, w
     if outside0 or not inside1:
         return False, u1, v1, w1
