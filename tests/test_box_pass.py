@@ -99,3 +99,27 @@ def test_no_point_ends_inside_and_a_point_that_entered_stays_on_its_side(seed, t
     assert (np.sign(lf[k, a]) == np.sign(l0[k, a])).all()
     assert (np.abs(lf[k, a]) >= half[a] - 1e-12).all()
     assert (entered & clear & ~pinned).sum() + missed.sum() > 0
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), turned=st.booleans(), sliding=st.booleans(),
+       friction=st.floats(0.0, 1.0))
+def test_eight_at_a_time_as_one_by_one(seed, turned, sliding, friction):
+    """The pass takes the points eight at a time in vector code written by hand
+    (box_lanes) and the few left over one by one in numba's: both place every
+    point alike (the one-by-one run of each point goes through its own pass, a
+    single point long). A box along the world's axes, to the bit; a turned or
+    moving one within rounding, as fast-math lets LLVM fuse the turns' sums
+    differently in a vector and in a lone point's code."""
+    b, M, R, P, free = _scene(seed, turned, sliding)
+    b.friction = friction
+    rows = box.pack([b], 0.0, 1.0, 1)
+    eights = P.copy()
+    box.collide_boxes(eights, R, free, rows, 0, N, 0)
+    ones = P.copy()
+    for p in range(N):
+        box.collide_boxes(ones, R, free, rows, p, p + 1, 0)
+    if turned or sliding:
+        assert np.abs(eights - ones).max() < 1e-12
+    else:
+        assert np.array_equal(eights, ones)

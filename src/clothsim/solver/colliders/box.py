@@ -20,6 +20,7 @@ from numba import njit
 from ...motion import rotation_matrices
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
+from .box_lanes import LANES, aligned_lanes, turned_lanes
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 COLUMNS = 17
@@ -144,8 +145,8 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
     last positions, carried by each box's motion over the substep where ``carry``,
     and the friction rule where ``friction`` (see the two kernels).
 
-    Two passes a box. A branch-free one over every point (:func:`_common`, it
-    vectorises) places the common case and marks the rest that end inside
+    Two passes a box. A vector one over every point (:func:`_common`, eight
+    at a time, :mod:`.box_lanes`) places the common case and marks the rest that end inside
     (near an edge or corner, or inside from before) and those that moved
     farther than the box's thinnest side (they may have gone through it);
     the second places the marked few (:func:`_place`), exactly."""
@@ -216,7 +217,10 @@ def _thinnest2(box_):
 def _aligned_loop(planes, refs, fr, marked, box_):
     """:func:`_common`'s loop for a still box whose axes are the world's (``box_``:
     centre (3), axes (9), half sizes (3), 1 - friction, margin): the rule in
-    world coordinates about the centre. Returns how many it marked."""
+    world coordinates about the centre, eight points at a time in the vector
+    code of :func:`.box_lanes.aligned_lanes` (which skips eight that no rule
+    touches), the last few one by one in the same arithmetic. Returns how
+    many it marked."""
     x, y, z = planes
     rx, ry, rz = refs
     cx, cy, cz = box_[0], box_[1], box_[2]
@@ -226,7 +230,12 @@ def _aligned_loop(planes, refs, fr, marked, box_):
     reach_w = (cz - (hw + margin), cz + (hw + margin))
     thinnest2 = _thinnest2(box_)
     count = 0
-    for p in range(marked.shape[0]):  # vectorised
+    n = marked.shape[0]
+    full = n - n % LANES
+    lanes_box = (cx, cy, cz, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
+    for q in range(0, full, LANES):
+        count += aligned_lanes(planes, refs, fr, marked, q, lanes_box)
+    for p in range(full, n):
         mx, my, mz = rx[p], ry[p], rz[p]
         xp, yp, zp = x[p], y[p], z[p]
         free_ = fr[p] != 0.0
@@ -268,7 +277,9 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     """:func:`_common`'s loop for any box: each reference position carried by the
     box's motion ``a`` (:func:`.motion_rows.carry_of`) and turned into the
     box's frame in one map, the end turned too, the rule there, and the
-    result turned back (:func:`_frame_maps`). Returns as :func:`_aligned_loop`."""
+    result turned back (:func:`_frame_maps`); eight at a time in
+    :func:`.box_lanes.turned_lanes`, the last few one by one. Returns as
+    :func:`_aligned_loop`."""
     x, y, z = planes
     rx, ry, rz = refs
     hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]
@@ -278,7 +289,12 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     reach_w = (-(hw + margin), hw + margin)
     thinnest2 = _thinnest2(box_)
     count = 0
-    for p in range(marked.shape[0]):  # vectorised
+    n = marked.shape[0]
+    full = n - n % LANES
+    lanes_box = (0.0, 0.0, 0.0, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
+    for q in range(0, full, LANES):
+        count += turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
+    for p in range(full, n):
         u0, v0, w0 = carry_point(ref, rx[p], ry[p], rz[p])
         xp, yp, zp = x[p], y[p], z[p]
         u1, v1, w1 = carry_point(end, xp, yp, zp)
