@@ -168,16 +168,16 @@ def test_no_point_ends_below_the_plane_at_one_substep(path, overrides):
     assert lowest[0] >= 0.0
 
 
-def test_the_moving_loop_takes_the_still_rule_across_its_blocks():
-    """the moving sphere's loop works out its carried last positions a block of
-    CARRY_BLOCK points at a time: with the identity carry, over several blocks
-    and from a part that starts inside one, it puts every point where the still
-    sphere's loop does, and leaves the points outside the part alone"""
-    from clothsim.solver.colliders.sphere import CARRY_BLOCK
+def test_the_moving_loop_takes_the_still_rule_eight_at_a_time():
+    """the moving sphere's loop takes its points eight at a time: with the identity
+    carry, over a part that starts and ends off a multiple of eight, it puts
+    every point where the still sphere's loop does, and leaves the points
+    outside the part alone"""
+    from clothsim.solver.colliders.sphere_lanes import LANES
 
     rng = np.random.default_rng(11)
     c, r, friction = np.array([0.5, 0.2, 0.5]), 0.2, 0.3
-    n = 3 * CARRY_BLOCK + 17
+    n = 90 * LANES + 17
     normal = rng.normal(size=(n, 3))
     normal /= np.linalg.norm(normal, axis=1)[:, None]
     last = c + normal * (r + rng.uniform(-2e-4, 2e-3, (n, 1)))
@@ -185,7 +185,7 @@ def test_the_moving_loop_takes_the_still_rule_across_its_blocks():
     now[::41] += 0.3  # some points moved too far for the loop: its second pass takes them
     free = np.ones(n)
     free[::7] = 0.0
-    lo, hi = CARRY_BLOCK // 2 + 1, n - 5
+    lo, hi = 5 * LANES + 3, n - 5
     out = {}
     for moving in (False, True):
         P, L = planes(now), planes(last)
@@ -197,14 +197,14 @@ def test_the_moving_loop_takes_the_still_rule_across_its_blocks():
     assert not moved[:lo].any() and not moved[hi:].any()
 
 
-def test_the_moving_sphere_loops_agree_to_the_bit_and_the_cpu_picks_one():
-    """the moving sphere's two loops, carry in blocks (16 vector registers) and carry
-    in the loop (AVX-512's 32), put every point of a spinning, sliding sphere's
-    part in the same place to the bit and count the same fast points; the kernel
-    takes the one loop exactly where numba compiles for AVX-512F"""
+def test_the_moving_sphere_eight_at_a_time_as_one_by_one():
+    """the moving sphere's loop takes its points eight at a time in vector code
+    written by hand (sphere_lanes) and the few left over one by one in numba's:
+    both put every point of a spinning, sliding sphere's part in the same place
+    to the bit and count the same fast points (the one-by-one run of each point
+    goes through the loop a single point long)"""
     from clothsim.motion import Animation, Keyframe
     from clothsim.solver.colliders import sphere
-    from clothsim.solver.simd import target_features
 
     rng = np.random.default_rng(5)
     c, r = np.array([0.1, 0.3, -0.2]), 0.25
@@ -213,7 +213,7 @@ def test_the_moving_sphere_loops_agree_to_the_bit_and_the_cpu_picks_one():
     rows = sphere.pack([spec], 0.1, 0.01, 4)
     row = rows[2, 0]
     assert np.abs(row[5:14].reshape(3, 3) - np.eye(3)).max() > 1e-3  # a real turn to carry
-    n = 2 * sphere.CARRY_BLOCK + 39
+    n = 64 * sphere.LANES
     normal = rng.normal(size=(n, 3))
     normal /= np.linalg.norm(normal, axis=1)[:, None]
     last = c + normal * (r + rng.uniform(-2e-3, 4e-3, (n, 1)))
@@ -222,12 +222,12 @@ def test_the_moving_sphere_loops_agree_to_the_bit_and_the_cpu_picks_one():
     free = np.ones(n)
     free[::9] = 0.0
     far2 = sphere._far2(r)[1]
-    out = []
-    for loop in (sphere._carried_in_blocks, sphere._carried_in_loop):
-        P, L = planes(now), planes(last)
-        fast = loop(P[0], P[1], P[2], L[0], L[1], L[2], free, row, far2)
-        out.append((fast, P))
-    assert out[0][0] == out[1][0] == len(range(0, n, 37))
-    np.testing.assert_array_equal(out[0][1], out[1][1])
-    assert np.any(out[0][1] != planes(now), axis=0).sum() > n // 3
-    assert sphere.ONE_CARRY_LOOP == ("+avx512f" in target_features().split(","))
+    P, L = planes(now), planes(last)
+    fast = sphere._carried_rule(P[0], P[1], P[2], L[0], L[1], L[2], free, row, far2)
+    ones, fast_ones = planes(now), 0
+    for p in range(n):
+        fast_ones += sphere._carried_rule(ones[0, p:p + 1], ones[1, p:p + 1], ones[2, p:p + 1], L[0, p:], L[1, p:],
+                                          L[2, p:], free[p:], row, far2)
+    assert fast == fast_ones == len(range(0, n, 37))
+    np.testing.assert_array_equal(P, ones)
+    assert np.any(P != planes(now), axis=0).sum() > n // 3

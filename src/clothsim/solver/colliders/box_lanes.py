@@ -1,23 +1,16 @@
-"""The box's vector pass written eight points at a time, with a branch per eight.
+"""The box's vector pass, eight points at a time (see :mod:`.lanes`).
 
-On a cloth lying on a box, most points are nowhere near the box's inside:
-of the 2,500 points of the 50×50 cloth draped over a box, 757 end inside it
-in a substep, and 59% of the runs of eight consecutive points hold none.
-Such a run needs no rule: it is not written, and its marks are cleared. A
-loop that numba vectorises cannot skip a vector's worth of points (its body
-is branch-free, and a loop of eight is left scalar or pays for tests of
-overlapping arrays every time), so the pass's body is written here as LLVM
-vector code on eight doubles, with the test first and the rule behind a
-branch.
+Of the 2,500 points of the 50×50 cloth lying on a box, 757 end inside it in
+a substep, and 59% of the runs of eight consecutive points hold none. Each
+call tests its eight first (ending inside, or moved farther than the box's
+thinnest side); where none is, it only clears their marks, and writes
+nothing.
 
 The arithmetic is that of :func:`.box._axis` and :func:`.box._write_or_mark`,
-in the same order and with the same fast-math flags numba gives it: the
-positions are those of the loop numba vectorised before, to the bit, on the
-standard box scenes; the few points past the last eight, placed one by one in
-numba's code, may round differently in a turned box's turns (fast-math lets
-LLVM fuse their sums otherwise in scalar code). LLVM lowers the eight-double
-vectors for any x86 target: one 512-bit register with AVX-512, two 256-bit
-ones without.
+in the same order: the positions are those of the loop numba vectorised
+before, to the bit, on the standard box scenes; the few points past the last
+eight, placed one by one in numba's code, may round differently in a turned
+box's turns (fast-math lets LLVM fuse their sums otherwise in scalar code).
 """
 
 from __future__ import annotations
@@ -28,96 +21,25 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from ..simd import _splat, _vector_at
+from ..simd import _vector_at
+from .lanes import LANES, MAP, Lanes, check_numbers, check_rows, planes_of
 
-LANES = 8
-"""points a call places: one vector of eight doubles"""
-
-FAST = ("fast",)
-"""the flags numba's ``fastmath=True`` puts on every floating-point operation"""
+__all__ = ["LANES", "aligned_lanes", "turned_lanes"]
 
 _BOX = 14
 """numbers in a box's tuple, see :func:`aligned_lanes`"""
 
-_MAP = 12
-"""numbers in an affine map, see :func:`.motion_rows.carry_of`"""
-
 
 def _check(planes, refs, free, marked, box, maps=()):
     """A typing error unless the arguments are what the lanes read and write."""
-    row = types.Array(types.float64, 1, "C")
-    arrays = tuple(planes) + tuple(refs) + (free,) if (isinstance(planes, types.UniTuple) and
-                                                         isinstance(refs, types.UniTuple)) else ()
-    if len(arrays) != 7 or not all(isinstance(a, types.Array) and a.dtype == row.dtype and a.ndim == 1
-                                   and a.layout == "C" for a in arrays):
-        raise TypingError("the box's lanes take three planes, three references and the free "
-                          "weights as contiguous float64 (N,) arrays")
+    arrays = planes_of(planes) + planes_of(refs) + (free,)
+    if len(arrays) != 7:
+        raise TypingError("the box's lanes take three planes and three references")
+    check_rows("the box's lanes", arrays)
     if not (isinstance(marked, types.Array) and marked.ndim == 1 and marked.layout == "C"
             and marked.dtype == types.boolean):
         raise TypingError("the box's lanes take a contiguous bool (N,) array of marks")
-    sizes = ((box, _BOX),) + tuple((m, _MAP) for m in maps)
-    if not all(isinstance(t, types.UniTuple) and t.dtype == types.float64 and len(t) == k for t, k in sizes):
-        raise TypingError("the box's lanes take a box of 14 floats and maps of 12")
-
-
-class _Lanes:
-    """The vector code of one call: eight lanes of doubles."""
-
-    def __init__(self, context, builder):
-        self.context, self.builder = context, builder
-        self.vec = ir.VectorType(ir.DoubleType(), LANES)
-        self.bits = ir.VectorType(ir.IntType(1), LANES)
-        module = builder.module
-        self._fabs = cgutils.get_or_insert_function(module, ir.FunctionType(self.vec, [self.vec]),
-                                                    "llvm.fabs.v8f64")
-
-    def splat(self, value):
-        return _splat(self.builder, value, self.vec)
-
-    def numbers(self, tuple_type, value):
-        """the floats of a UniTuple, each in every lane"""
-        return [self.splat(v) for v in cgutils.unpack_tuple(self.builder, value, len(tuple_type))]
-
-    def load(self, array_type, array, at):
-        ptr = _vector_at(self.context, self.builder, array_type, array, [at], self.vec)
-        return self.builder.load(ptr, align=8)
-
-    def store(self, value, array_type, array, at):
-        ptr = _vector_at(self.context, self.builder, array_type, array, [at], self.vec)
-        self.builder.store(value, ptr, align=8)
-
-    def add(self, a, b):
-        return self.builder.fadd(a, b, flags=FAST)
-
-    def sub(self, a, b):
-        return self.builder.fsub(a, b, flags=FAST)
-
-    def mul(self, a, b):
-        return self.builder.fmul(a, b, flags=FAST)
-
-    def abs(self, a):
-        return self.builder.call(self._fabs, [a])
-
-    def less(self, a, b):
-        return self.builder.fcmp_ordered("<", a, b, flags=FAST)
-
-    def at_least(self, a, b):
-        return self.builder.fcmp_ordered(">=", a, b, flags=FAST)
-
-    def pick(self, flag, a, b):
-        return self.builder.select(flag, a, b)
-
-    def clamp(self, a, lo, hi):
-        """min(max(a, lo), hi), as numba's min and max (a select on a comparison)"""
-        up = self.pick(self.builder.fcmp_ordered(">", a, lo, flags=FAST), a, lo)
-        return self.pick(self.builder.fcmp_ordered("<", up, hi, flags=FAST), up, hi)
-
-    def affine(self, m, point):
-        """the map m (12 numbers, :func:`.motion_rows.carry_of`) of a point, in the
-        order :func:`.motion_rows.carry_point` sums it"""
-        x, y, z = point
-        return tuple(self.add(self.add(self.add(self.mul(m[3 * k], x), self.mul(m[3 * k + 1], y)),
-                                       self.mul(m[3 * k + 2], z)), m[9 + k]) for k in range(3))
+    check_numbers("the box's lanes", ((box, _BOX),) + tuple((m, MAP) for m in maps))
 
 
 def _place_lanes(lanes, ends, starts, box, back, store):
@@ -138,9 +60,8 @@ def _place_lanes(lanes, ends, starts, box, back, store):
     d2 = lanes.add(lanes.add(lanes.mul(moves[0], moves[0]), lanes.mul(moves[1], moves[1])),
                    lanes.mul(moves[2], moves[2]))
     far = b.and_(lanes.at_least(d2, thinnest2), free_)
-    act = b.bitcast(b.or_(inside, far), ir.IntType(LANES))
     count = cgutils.alloca_once_value(b, ir.Constant(ir.IntType(64), 0))
-    with b.if_else(b.icmp_unsigned("!=", act, ir.Constant(act.type, 0)), likely=False) as (some, none):
+    with b.if_else(lanes.any(b.or_(inside, far)), likely=False) as (some, none):
         with some:
             outs, new = [], []
             for k in range(3):
@@ -155,11 +76,7 @@ def _place_lanes(lanes, ends, starts, box, back, store):
             mark = b.or_(b.and_(inside, b.not_(one)), far)
             placed = back(new) if back is not None else new
             store([lanes.pick(simple, placed[k], old[k]) for k in range(3)], mark)
-            popcount = cgutils.get_or_insert_function(b.module, ir.FunctionType(ir.IntType(LANES),
-                                                                                [ir.IntType(LANES)]),
-                                                      "llvm.ctpop.i8")
-            marks = b.call(popcount, [b.bitcast(mark, ir.IntType(LANES))])
-            b.store(b.zext(marks, ir.IntType(64)), count)
+            b.store(lanes.count(mark), count)
         with none:
             store(None, ir.Constant(lanes.bits, None))
     return b.load(count)
@@ -169,15 +86,14 @@ def _codegen(turned):
     def codegen(context, builder, signature, args):
         planes_t, refs_t, free_t, marked_t, at_t, box_t = signature.args[:6]
         planes_v, refs_v, free_v, marked_v, at_v, box_v = args[:6]
-        lanes = _Lanes(context, builder)
+        lanes = Lanes(context, builder)
         at = context.cast(builder, at_v, at_t, types.intp)
         plane_vals = cgutils.unpack_tuple(builder, planes_v, 3)
         ref_vals = cgutils.unpack_tuple(builder, refs_v, 3)
         row_t = planes_t.dtype
         xyz = [lanes.load(row_t, p, at) for p in plane_vals]
         refs = [lanes.load(row_t, r, at) for r in ref_vals]
-        free_ = builder.fcmp_unordered("!=", lanes.load(free_t, free_v, at), ir.Constant(lanes.vec, None),
-                                       flags=FAST)
+        free_ = lanes.nonzero(lanes.load(free_t, free_v, at))
         box = lanes.numbers(box_t, box_v)
         back = None
         if turned:

@@ -4,7 +4,8 @@ A sphere is a row ``(cx, cy, cz, r, friction, carry...)`` of float64 rows
 (T, K, 5 + CARRY) (see :mod:`.motion_rows`): its centre at the end of the
 substep and how it moved over it. Positions are (3, N) coordinate planes
 (see :mod:`clothsim.solver.springs`). Each loop over all the points is a
-branch-free select so that it vectorises; the rare points that moved far
+branch-free select so that it vectorises (a moving sphere's, eight points at
+a time in vector code of our own, :mod:`.sphere_lanes`); the rare points that moved far
 enough to have gone through a sphere, and those that Provot's pass left
 deeper than SPHERE_SETTLE, are taken in scalar passes that run only when
 there are any.
@@ -19,7 +20,7 @@ from numba import njit
 
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
-from ..simd import has_avx512f
+from .sphere_lanes import LANES, carried_lanes
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 
@@ -38,16 +39,6 @@ def pack(spheres: Sequence, t0: float = 0.0, dt: float = 0.0, substeps: int = 1)
 
 SPHERE_OFFSET = 1e-4
 """distance outside the sphere at which a point that went through it is put [m]"""
-
-CARRY_BLOCK = 256
-"""points whose carried last positions a moving sphere's loop works out at a
-time, into a scratch that stays in L1 (where the CPU has 16 vector registers)"""
-
-ONE_CARRY_LOOP = has_avx512f()
-"""whether a moving sphere's carry and rule run as one loop: where numba compiles
-for AVX-512F, whose 32 vector registers (AVX2 has 16) hold the carry's twelve
-numbers with the rest, at either vector width (see :func:`_carried_rule`); a
-constant to numba, which keys its cache entries on the CPU features it stands for"""
 
 SPHERE_SETTLE = 1e-3
 """depth [m] beyond which a point that a later pass (Provot's) pulled into a
@@ -130,48 +121,18 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
     """The loop of :func:`collide_spheres` for a moving sphere ``row``, its last
     positions carried by the sphere's motion; returns how many points moved
     farther than ``far2`` allows. A function of its own, so that the still
-    loop's code stays as it was. With 32 vector registers (ONE_CARRY_LOOP) the
-    carry is made in the loop itself (:func:`_carried_in_loop`), which then
-    costs what the still loop does."""
-    if ONE_CARRY_LOOP:
-        return _carried_in_loop(x, y, z, lx, ly, lz, free, row, far2)
-    return _carried_in_blocks(x, y, z, lx, ly, lz, free, row, far2)
-
-
-@njit(**KERNEL_OPTIONS)
-def _carried_in_blocks(x, y, z, lx, ly, lz, free, row, far2):
-    """:func:`_carried_rule` where the CPU has 16 vector registers: the carried last
-    positions of a block of points first, then the rule on them."""
-    # the carried last positions of a block first, then the still loop's
-    # rule on them: in one loop the twelve carry numbers, with the centre,
-    # radius and friction, outnumber AVX2's sixteen vector registers and
-    # were reloaded from the stack every four points (docs/performance.md)
+    loop's code stays as it was. Eight points at a time in the vector code of
+    :func:`.sphere_lanes.carried_lanes`, which skips the rule's square root,
+    division and stores where none of the eight is inside; the last few one
+    by one (:func:`_carried_point`), in the same arithmetic."""
     fast = 0
     a = carry_of(row, 5)
     sphere = _rule_of(row, far2)
-    carried = np.empty((3, CARRY_BLOCK))
-    mxs, mys, mzs = carried[0], carried[1], carried[2]
     n = x.shape[0]
-    for q in range(0, n, CARRY_BLOCK):
-        m = min(CARRY_BLOCK, n - q)
-        lxq, lyq, lzq = lx[q:], ly[q:], lz[q:]
-        for p in range(m):
-            mxs[p], mys[p], mzs[p] = carry_point(a, lxq[p], lyq[p], lzq[p])
-        xq, yq, zq, fq = x[q:], y[q:], z[q:], free[q:]
-        for p in range(m):
-            fast += _carried_point((xq, yq, zq), p, (mxs[p], mys[p], mzs[p]), fq[p], sphere)
-    return fast
-
-
-@njit(**KERNEL_OPTIONS)
-def _carried_in_loop(x, y, z, lx, ly, lz, free, row, far2):
-    """:func:`_carried_rule` as one loop, each last position carried where it is
-    read: the same operations in the same order, so the same positions to the
-    bit, without the scratch's store and load of every carried position."""
-    fast = 0
-    a = carry_of(row, 5)
-    sphere = _rule_of(row, far2)
-    for p in range(x.shape[0]):
+    full = n - n % LANES
+    for q in range(0, full, LANES):
+        fast += carried_lanes((x, y, z), (lx, ly, lz), free, q, sphere, a)
+    for p in range(full, n):
         fast += _carried_point((x, y, z), p, carry_point(a, lx[p], ly[p], lz[p]), free[p], sphere)
     return fast
 

@@ -1,0 +1,141 @@
+"""Eight lanes of doubles in LLVM vector code, for the colliders' passes.
+
+A collider's pass over a cloth lying on it touches few of the points: most
+lie nowhere near the collider's inside. A loop that numba vectorises cannot
+skip a vector's worth of points (its body is branch-free, and a loop of
+eight is left scalar or pays for tests of overlapping arrays every time),
+so the box's and the moving sphere's passes are written as LLVM vector code
+on eight points at a time, with their test first and their rule behind a
+branch taken only where one of the eight needs it (:mod:`.box_lanes`,
+:mod:`.sphere_lanes`). :class:`Lanes` emits that code: the operations carry
+the fast-math flags numba gives its own (``fastmath=True``), so the same
+sums in the same order give the same bits. LLVM lowers the eight-double
+vectors for any x86 target: one 512-bit register with AVX-512, two 256-bit
+ones without.
+"""
+
+from __future__ import annotations
+
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.core.errors import TypingError
+
+from ..simd import _splat, _vector_at
+
+LANES = 8
+"""points a call places: one vector of eight doubles"""
+
+FAST = ("fast",)
+"""the flags numba's ``fastmath=True`` puts on every floating-point operation"""
+
+MAP = 12
+"""numbers in an affine map, see :func:`.motion_rows.carry_of`"""
+
+
+def check_rows(who, arrays):
+    """A typing error naming ``who`` unless ``arrays`` are contiguous float64 (N,)."""
+    if not all(isinstance(a, types.Array) and a.dtype == types.float64 and a.ndim == 1 and a.layout == "C"
+               for a in arrays):
+        raise TypingError(f"{who} take contiguous float64 (N,) arrays")
+
+
+def check_numbers(who, pairs):
+    """A typing error naming ``who`` unless each (tuple type, length) of ``pairs``
+    is a tuple of that many float64."""
+    if not all(isinstance(t, types.UniTuple) and t.dtype == types.float64 and len(t) == k for t, k in pairs):
+        raise TypingError(f"{who} take tuples of " + ", ".join(str(k) for _, k in pairs) + " floats")
+
+
+def planes_of(tuple_type):
+    """the arrays of a tuple type of three planes, or () when it is not one"""
+    return tuple(tuple_type) if isinstance(tuple_type, types.UniTuple) and len(tuple_type) == 3 else ()
+
+
+class Lanes:
+    """The vector code of one call: eight lanes of doubles."""
+
+    def __init__(self, context, builder):
+        self.context, self.builder = context, builder
+        self.vec = ir.VectorType(ir.DoubleType(), LANES)
+        self.bits = ir.VectorType(ir.IntType(1), LANES)
+        module = builder.module
+        self._fabs = cgutils.get_or_insert_function(module, ir.FunctionType(self.vec, [self.vec]),
+                                                    "llvm.fabs.v8f64")
+
+    def splat(self, value):
+        return _splat(self.builder, value, self.vec)
+
+    def numbers(self, tuple_type, value):
+        """the floats of a UniTuple, each in every lane"""
+        return [self.splat(v) for v in cgutils.unpack_tuple(self.builder, value, len(tuple_type))]
+
+    def load(self, array_type, array, at):
+        ptr = _vector_at(self.context, self.builder, array_type, array, [at], self.vec)
+        return self.builder.load(ptr, align=8)
+
+    def store(self, value, array_type, array, at):
+        ptr = _vector_at(self.context, self.builder, array_type, array, [at], self.vec)
+        self.builder.store(value, ptr, align=8)
+
+    def add(self, a, b):
+        return self.builder.fadd(a, b, flags=FAST)
+
+    def sub(self, a, b):
+        return self.builder.fsub(a, b, flags=FAST)
+
+    def mul(self, a, b):
+        return self.builder.fmul(a, b, flags=FAST)
+
+    def abs(self, a):
+        return self.builder.call(self._fabs, [a])
+
+    def less(self, a, b):
+        return self.builder.fcmp_ordered("<", a, b, flags=FAST)
+
+    def at_least(self, a, b):
+        return self.builder.fcmp_ordered(">=", a, b, flags=FAST)
+
+    def pick(self, flag, a, b):
+        return self.builder.select(flag, a, b)
+
+    def clamp(self, a, lo, hi):
+        """min(max(a, lo), hi), as numba's min and max (a select on a comparison)"""
+        up = self.pick(self.builder.fcmp_ordered(">", a, lo, flags=FAST), a, lo)
+        return self.pick(self.builder.fcmp_ordered("<", up, hi, flags=FAST), up, hi)
+
+    def affine(self, m, point):
+        """the map m (12 numbers, :func:`.motion_rows.carry_of`) of a point, in the
+        order :func:`.motion_rows.carry_point` sums it"""
+        x, y, z = point
+        return tuple(self.add(self.add(self.add(self.mul(m[3 * k], x), self.mul(m[3 * k + 1], y)),
+                                       self.mul(m[3 * k + 2], z)), m[9 + k]) for k in range(3))
+
+
+    def sqrt(self, a):
+        fn = cgutils.get_or_insert_function(self.builder.module, ir.FunctionType(self.vec, [self.vec]),
+                                            "llvm.sqrt.v8f64")
+        return self.builder.call(fn, [a], fastmath=FAST)
+
+    def div(self, a, b):
+        return self.builder.fdiv(a, b, flags=FAST)
+
+    def greater(self, a, b):
+        return self.builder.fcmp_ordered(">", a, b, flags=FAST)
+
+    def nonzero(self, a):
+        """a != 0.0, as numba compares (true for NaN)"""
+        return self.builder.fcmp_unordered("!=", a, ir.Constant(self.vec, None), flags=FAST)
+
+    def count(self, flags):
+        """how many of the eight i1 ``flags`` are set, as an i64"""
+        b = self.builder
+        word = ir.IntType(LANES)
+        popcount = cgutils.get_or_insert_function(b.module, ir.FunctionType(word, [word]), "llvm.ctpop.i8")
+        return b.zext(b.call(popcount, [b.bitcast(flags, word)]), ir.IntType(64))
+
+    def any(self, flags):
+        """whether any of the eight i1 ``flags`` is set (an i1)"""
+        b = self.builder
+        word = b.bitcast(flags, ir.IntType(LANES))
+        return b.icmp_unsigned("!=", word, ir.Constant(word.type, 0))
