@@ -42,17 +42,18 @@ def _check(planes, refs, free, marked, box, maps=()):
     check_numbers("the box's lanes", ((box, _BOX),) + tuple((m, MAP) for m in maps))
 
 
-def _place_lanes(lanes, ends, starts, box, back, store):
+def _place_lanes(lanes, ends, starts, free_, old, box, back, store):
     """The body of a call: ``ends`` and ``starts`` (three vectors each) are the
     points and their references in the frame where the box is ``box``
-    (:func:`aligned_lanes`'s numbers, each in every lane); ``back`` maps a
-    placed point to the world (None: it is there already); ``store(planes,
-    marks)`` writes three vectors of positions (or None: leave them) and the
-    marks (an i1 vector). Returns the count of marks (i64)."""
+    (:func:`aligned_lanes`'s numbers, each in every lane), ``free_`` whether
+    each point is free (an i1 vector), ``old`` the points as read (three
+    vectors, the world's); ``back`` maps a placed point to the world (None: it
+    is there already); ``store(planes, marks)`` writes three vectors of
+    positions (or None: leave them) and the marks (an i1 vector). Returns the
+    count of marks (i64)."""
     b = lanes.builder
     c, h, reach = box[0:3], box[3:6], box[6:12]
     keep, thinnest2 = box[12], box[13]
-    ends, free_, old = ends[:3], ends[3], ends[4:]
     inside = free_
     for k in range(3):
         inside = b.and_(lanes.less(lanes.abs(lanes.sub(ends[k], c[k])), h[k]), inside)
@@ -114,7 +115,7 @@ def _codegen(turned):
             ptr = _vector_at(context, builder, marked_t, marked_v, [at], bytes_)
             builder.store(builder.zext(mark, bytes_), ptr, align=1)
 
-        return _place_lanes(lanes, tuple(ends) + (free_,) + tuple(xyz), tuple(starts), box, back, store)
+        return _place_lanes(lanes, ends, starts, free_, xyz, box, back, store)
 
     return codegen
 
