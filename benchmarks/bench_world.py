@@ -17,7 +17,11 @@ on the box) one substep's fall further, called on a fresh copy of it many
 times (the copy's own time taken off), best of the rounds: the still sphere,
 the spinning sphere (on the still one's cloth), the box, the same box
 moving, the wind (its pass over the triangles: the grid path's stencils, and
-the general path's loop over a triangle list), per call of one substep.
+the general path's loop over a triangle list), per call of one substep; and
+the still sphere's kernel as it stood at `c978e85` (``sphere_then.py``),
+the sphere issue 21 measures a box and an animated sphere against. Each
+line gives the kernel's cost as a multiple of today's still sphere
+(``of_sphere``) and of that one (``of_sphere_then``).
 
     python benchmarks/bench_world.py [--rounds 5] [--seconds 1] [--kernels]
 """
@@ -79,6 +83,7 @@ def _settled(scene: dict):
 
 def kernel_times(rounds: int, calls: int = 400) -> None:
     import numpy as np
+    import sphere_then
 
     from clothsim.motion import Animation, Keyframe
     from clothsim.solver.colliders import box, sphere
@@ -104,7 +109,8 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     work = {"sphere": (sphere.collide_spheres, sphere.pack([s0], 1.5, dt, steps), on_sphere),
             "spinning sphere": (sphere.collide_spheres, sphere.pack([moving_sphere], 1.5, dt, steps), on_sphere),
             "box": (box.collide_boxes, box.pack([b0], 1.5, dt, steps), on_box),
-            "moving box": (box.collide_boxes, box.pack([moving_box], 1.5, dt, steps), on_box)}
+            "moving box": (box.collide_boxes, box.pack([moving_box], 1.5, dt, steps), on_box),
+            "sphere at c978e85": (sphere_then.collide_spheres, sphere_then.pack([s0]), on_sphere)}
     wind = pack_wind(WindSpec((5.0, 0.0, 0.0)), 1.5, dt)
     knobs = sim.solver.knobs(sim.params)
     n = on_sphere[0].shape[1]
@@ -139,10 +145,11 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
                 f()
             best[name] = min(best[name], (time.thread_time() - t0) / calls)
     sphere_us = (best["sphere"] - best["copy"]) * 1e6
+    then_us = (best["sphere at c978e85"] - best["copy"]) * 1e6
     for name in names[1:]:
         us = (best[name] - best["copy"]) * 1e6
         emit({"bench": "world-kernels", "case": name, "points": n, "us_per_substep": round(us, 2),
-              "of_sphere": round(us / sphere_us, 2), **machine()})
+              "of_sphere": round(us / sphere_us, 2), "of_sphere_then": round(us / then_us, 2), **machine()})
 
 
 def main() -> None:

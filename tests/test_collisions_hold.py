@@ -197,12 +197,13 @@ def test_the_moving_loop_takes_the_still_rule_eight_at_a_time():
     assert not moved[:lo].any() and not moved[hi:].any()
 
 
-def test_the_moving_sphere_eight_at_a_time_as_one_by_one():
-    """the moving sphere's loop takes its points eight at a time in vector code
-    written by hand (sphere_lanes) and the few left over one by one in numba's:
-    both put every point of a spinning, sliding sphere's part in the same place
-    to the bit and count the same fast points (the one-by-one run of each point
-    goes through the loop a single point long)"""
+def test_the_sphere_eight_at_a_time_as_one_by_one():
+    """the sphere's loops, moving and still, take their points eight at a time in
+    vector code written by hand (sphere_lanes) and the few left over one by one
+    in numba's: both put every point of a spinning, sliding sphere's part (or
+    of the same sphere standing still) in the same place to the bit and count
+    the same fast points (the one-by-one run of each point goes through the
+    loop a single point long)"""
     from clothsim.motion import Animation, Keyframe
     from clothsim.solver.colliders import sphere
 
@@ -222,12 +223,13 @@ def test_the_moving_sphere_eight_at_a_time_as_one_by_one():
     free = np.ones(n)
     free[::9] = 0.0
     far2 = sphere._far2(r)[1]
-    P, L = planes(now), planes(last)
-    fast = sphere._carried_rule(P[0], P[1], P[2], L[0], L[1], L[2], free, row, far2)
-    ones, fast_ones = planes(now), 0
-    for p in range(n):
-        fast_ones += sphere._carried_rule(ones[0, p:p + 1], ones[1, p:p + 1], ones[2, p:p + 1], L[0, p:], L[1, p:],
-                                          L[2, p:], free[p:], row, far2)
-    assert fast == fast_ones == len(range(0, n, 37))
-    np.testing.assert_array_equal(P, ones)
-    assert np.any(P != planes(now), axis=0).sum() > n // 3
+    for rule in (sphere._carried_rule, sphere._still_rule):  # the still one reads the row's sphere alone
+        P, L = planes(now), planes(last)
+        fast = rule(P[0], P[1], P[2], L[0], L[1], L[2], free, row, far2)
+        ones, fast_ones = planes(now), 0
+        for p in range(n):
+            fast_ones += rule(ones[0, p:p + 1], ones[1, p:p + 1], ones[2, p:p + 1], L[0, p:], L[1, p:], L[2, p:],
+                              free[p:], row, far2)
+        assert fast == fast_ones == len(range(0, n, 37))
+        np.testing.assert_array_equal(P, ones)
+        assert np.any(P != planes(now), axis=0).sum() > n // 3

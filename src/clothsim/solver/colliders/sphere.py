@@ -20,7 +20,7 @@ from numba import njit
 
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
-from .sphere_lanes import LANES, carried_lanes
+from .sphere_lanes import LANES, carried_lanes, still_lanes
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 
@@ -83,37 +83,31 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
     free = free[lo:]
     for k in range(rows.shape[0]):
         row = rows[k]
-        cx, cy, cz, r, fr = row[0], row[1], row[2], row[3], row[4]
-        r2 = r * r
-        far2 = _far2(r)[1]
-        keep = 1.0 - fr
-        fast = 0
-        if not moving:  # the course code's loop, to the bit: no carry in its sums
-            for p in range(x.shape[0]):
-                # whole stores, not masked ones (see ..blend); the test
-                # without short cuts, so that free[p] is read for every point
-                xp, yp, zp = x[p], y[p], z[p]
-                dx = xp - cx
-                dy = yp - cy
-                dz = zp - cz
-                d2 = dx * dx + dy * dy + dz * dz
-                ux = xp - lx[p]
-                uy = yp - ly[p]
-                uz = zp - lz[p]
-                far = ux * ux + uy * uy + uz * uz > far2
-                fast += far
-                hit = (d2 < r2) & (d2 > 0.0) & (free[p] != 0.0) & (not far)
-                f = r / np.sqrt(d2 if hit else 1.0)
-                nx = lx[p] + keep * (cx + dx * f - lx[p])
-                ny = ly[p] + keep * (cy + dy * f - ly[p])
-                nz = lz[p] + keep * (cz + dz * f - lz[p])
-                write_point((x, y, z), p, hit, (nx, ny, nz), (xp, yp, zp))
-            if fast:
-                _far(x, y, z, lx, ly, lz, free, row, False)
-            continue
-        fast = _carried_rule(x, y, z, lx, ly, lz, free, row, far2)
+        far2 = _far2(row[3])[1]
+        if moving:
+            fast = _carried_rule(x, y, z, lx, ly, lz, free, row, far2)
+        else:  # the course code's sums, to the bit: no carry in them
+            fast = _still_rule(x, y, z, lx, ly, lz, free, row, far2)
         if fast:
-            _far(x, y, z, lx, ly, lz, free, row, True)
+            _far(x, y, z, lx, ly, lz, free, row, moving)
+
+
+@njit(**KERNEL_OPTIONS)
+def _still_rule(x, y, z, lx, ly, lz, free, row, far2):
+    """The loop of :func:`collide_spheres` for a still sphere ``row``: the rule of
+    :func:`_carried_point` on the last positions as they are, eight points at a
+    time in :func:`.sphere_lanes.still_lanes` (which skips eight with none
+    inside), the last few one by one; returns how many points moved farther
+    than ``far2`` allows."""
+    fast = 0
+    sphere = _rule_of(row, far2)
+    n = x.shape[0]
+    full = n - n % LANES
+    for q in range(0, full, LANES):
+        fast += still_lanes((x, y, z), (lx, ly, lz), free, q, sphere)
+    for p in range(full, n):
+        fast += _carried_point((x, y, z), p, (lx[p], ly[p], lz[p]), free[p], sphere)
+    return fast
 
 
 @njit(**KERNEL_OPTIONS)

@@ -1,7 +1,7 @@
-"""A moving sphere's pass, eight points at a time (see :mod:`.lanes`).
+"""A sphere's pass, eight points at a time (see :mod:`.lanes`).
 
 Each call carries its eight last positions along with the sphere's motion
-and tests the eight (inside the sphere and free, or moved too far for the
+(a still sphere's stay as they are) and tests the eight (inside the sphere and free, or moved too far for the
 radial rule); only where one of them is inside does it take the square root,
 the division and the friction rule, and write the eight back. Of the 2,500
 points of the 50×50 cloth draped over the sphere of ``sphere.json``, 359 are
@@ -20,15 +20,15 @@ from numba.extending import intrinsic
 
 from .lanes import LANES, MAP, Lanes, check_numbers, check_rows, planes_of
 
-__all__ = ["LANES", "carried_lanes"]
+__all__ = ["LANES", "carried_lanes", "still_lanes"]
 
 _SPHERE = 7
 """numbers in a sphere's tuple, see :func:`carried_lanes`"""
 
 
 def _codegen(context, builder, signature, args):
-    planes_t, lasts_t, free_t, at_t, sphere_t, carry_t = signature.args
-    planes_v, lasts_v, free_v, at_v, sphere_v, carry_v = args
+    planes_t, lasts_t, free_t, at_t, sphere_t = signature.args[:5]
+    planes_v, lasts_v, free_v, at_v, sphere_v = args[:5]
     lanes = Lanes(context, builder)
     b = builder
     at = context.cast(b, at_v, at_t, types.intp)
@@ -39,7 +39,8 @@ def _codegen(context, builder, signature, args):
     free_ = lanes.nonzero(lanes.load(free_t, free_v, at))
     cx, cy, cz, r, r2, keep, far2 = lanes.numbers(sphere_t, sphere_v)
     centre = (cx, cy, cz)
-    m = lanes.affine(lanes.numbers(carry_t, carry_v), last)
+    # a still sphere's last positions as they are: the course code's sums
+    m = lanes.affine(lanes.numbers(signature.args[5], args[5]), last) if len(args) > 5 else last
     d = [lanes.sub(xyz[k], centre[k]) for k in range(3)]
     d2 = lanes.add(lanes.add(lanes.mul(d[0], d[0]), lanes.mul(d[1], d[1])), lanes.mul(d[2], d[2]))
     u = [lanes.sub(xyz[k], m[k]) for k in range(3)]
@@ -56,6 +57,23 @@ def _codegen(context, builder, signature, args):
     return lanes.count(far)
 
 
+def _check(planes, lasts, free, sphere, carry=None):
+    """A typing error unless the arguments are what the lanes read and write."""
+    arrays = planes_of(planes) + planes_of(lasts) + (free,)
+    if len(arrays) != 7:
+        raise TypingError("the sphere's lanes take three planes and three last positions")
+    check_rows("the sphere's lanes", arrays)
+    check_numbers("the sphere's lanes", ((sphere, _SPHERE),) + (((carry, MAP),) if carry is not None else ()))
+
+
+@intrinsic
+def still_lanes(typingctx, planes, lasts, free, at, sphere):
+    """:func:`carried_lanes` for a still sphere: the last positions as they are, so
+    the sums are the course code's (:func:`.sphere.collide_spheres`)."""
+    _check(planes, lasts, free, sphere)
+    return types.int64(planes, lasts, free, at, sphere), _codegen
+
+
 @intrinsic
 def carried_lanes(typingctx, planes, lasts, free, at, sphere, carry):
     """The moving sphere's rule (:func:`.sphere._carried_point`) for points
@@ -66,9 +84,5 @@ def carried_lanes(typingctx, planes, lasts, free, at, sphere, carry):
     where one of them is inside, else left as they are. Returns how many
     moved farther than far2 allows. Nothing is bounds-checked: the caller
     keeps ``at + LANES`` within every array."""
-    arrays = planes_of(planes) + planes_of(lasts) + (free,)
-    if len(arrays) != 7:
-        raise TypingError("the sphere's lanes take three planes and three last positions")
-    check_rows("the sphere's lanes", arrays)
-    check_numbers("the sphere's lanes", ((sphere, _SPHERE), (carry, MAP)))
+    _check(planes, lasts, free, sphere, carry)
     return types.int64(planes, lasts, free, at, sphere, carry), _codegen
