@@ -39,7 +39,12 @@ SPHERE_EDITS = [
     (r"\b1\.0 - ", "1.0 - 0.5 * "),              # the friction factor: keep = 1.0 - friction
     (r"\br / np\.sqrt\(", "1.25 * r / np.sqrt("),  # the surface radius the points go to
 ]
-"""textual edits of the sphere-collision kernel, the first that matches is made"""
+"""textual edits of the sphere's rule, the first that matches is made"""
+
+SPHERE_RULE = "_rule_of"
+"""the function of the sphere's module that reads a sphere's row for its loops (the
+friction factor among its numbers): the loops themselves are written as vector
+code (colliders/sphere_lanes.py), so the edit goes where their numbers come from"""
 
 
 def copy_package(dest: Path) -> Path:
@@ -55,15 +60,15 @@ def sphere_scene() -> Path:
     raise AssertionError("no sphere.json in scenes/ or the package")
 
 
-def edit_collide_spheres(package: Path) -> Path:
-    """Change, in the copy, the body of the kernel named collide_spheres so that its
-    result surely changes; returns the file edited."""
-    defining = [p for p in sorted(package.rglob("*.py"))
-                if re.search(r"^def collide_spheres\(", p.read_text(), re.MULTILINE)]
-    assert len(defining) == 1, f"collide_spheres defined in {defining}"
+def edit_sphere_rule(package: Path) -> Path:
+    """Change, in the copy, the body of SPHERE_RULE, which every sphere collision
+    runs, so that its result surely changes; returns the file edited."""
+    head = rf"^def {SPHERE_RULE}\("
+    defining = [p for p in sorted(package.rglob("*.py")) if re.search(head, p.read_text(), re.MULTILINE)]
+    assert len(defining) == 1, f"{SPHERE_RULE} defined in {defining}"
     path = defining[0]
     text = path.read_text()
-    start = re.search(r"^def collide_spheres\(", text, re.MULTILINE).start()
+    start = re.search(head, text, re.MULTILINE).start()
     after = re.search(r"\n(?=[^\s#)])", text[start:])  # the next top-level line
     end = start + after.start() + 1 if after else len(text)
     body = text[start:end]
@@ -72,7 +77,7 @@ def edit_collide_spheres(package: Path) -> Path:
         if count:
             path.write_text(text[:start] + edited + text[end:])
             return path
-    raise AssertionError(f"none of SPHERE_EDITS matches collide_spheres in {path}:\n{body}")
+    raise AssertionError(f"none of SPHERE_EDITS matches {SPHERE_RULE} in {path}:\n{body}")
 
 
 def simulate(copy_root: Path, cache: Path, script: Path, out: Path,
@@ -122,7 +127,7 @@ def test_an_edited_kernel_is_compiled_afresh_into_an_old_cache(tmp_path):
     assert "data saved" not in log, "the unchanged sources compiled again"
     assert np.allclose(again, before, rtol=0.0, atol=1e-9)
 
-    edit_collide_spheres(package)
+    edit_sphere_rule(package)
     old_cache = simulate(copy_root, cache, script, out["after"])
     new_cache = simulate(copy_root, fresh, script, out["reference"])
     after, after_sum, _ = result(old_cache, copy_root, out["after"])
