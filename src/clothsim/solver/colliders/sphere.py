@@ -3,9 +3,9 @@
 A sphere is a row ``(cx, cy, cz, r, friction, carry...)`` of float64 rows
 (T, K, 5 + CARRY) (see :mod:`.motion_rows`): its centre at the end of the
 substep and how it moved over it. Positions are (3, N) coordinate planes
-(see :mod:`clothsim.solver.springs`). Each loop over all the points is a
-branch-free select so that it vectorises (a moving sphere's, eight points at
-a time in vector code of our own, :mod:`.sphere_lanes`); the rare points that moved far
+(see :mod:`clothsim.solver.springs`). The loop over all the points takes
+them eight at a time in vector code of our own (:mod:`.sphere_lanes`), which
+skips eight with none inside; the rare points that moved far
 enough to have gone through a sphere, and those that Provot's pass left
 deeper than SPHERE_SETTLE, are taken in scalar passes that run only when
 there are any.
@@ -69,10 +69,9 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
     That radial rule holds while the point's segment from its last position
     entered the sphere on its own side. A point that moved farther over the
     substep than :func:`_far2` allows (at the standard scenes' substep counts,
-    none does) is left in the loop, which stays a branch-free select that
-    vectorises, and :func:`_far` tests its segment: one that went through the
-    whole sphere, or that ends past the centre as seen from its last position,
-    goes to where the segment entered.
+    none does) is left as it is by the loop, and :func:`_far` tests its
+    segment: one that went through the whole sphere, or that ends past the
+    centre as seen from its last position, goes to where the segment entered.
     ``spheres`` None: nothing (the branch is pruned when numba compiles it)."""
     if spheres is None:
         return
@@ -114,8 +113,9 @@ def _still_rule(x, y, z, lx, ly, lz, free, row, far2):
 def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
     """The loop of :func:`collide_spheres` for a moving sphere ``row``, its last
     positions carried by the sphere's motion; returns how many points moved
-    farther than ``far2`` allows. A function of its own, so that the still
-    loop's code stays as it was. Eight points at a time in the vector code of
+    farther than ``far2`` allows. Apart from :func:`_still_rule`, so that neither
+    compiled loop tests which it is, and the still one reads no carry. Eight
+    points at a time in the vector code of
     :func:`.sphere_lanes.carried_lanes`, which skips the rule's square root,
     division and stores where none of the eight is inside; the last few one
     by one (:func:`_carried_point`), in the same arithmetic."""
