@@ -16,6 +16,10 @@ EXACT_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy")
 indices: fastmath would let LLVM drop the test, also where one of them is
 inlined into another, and a NaN index could then reach memory"""
 
+SET_STEP = ((0, 1), (1, 0), (1, 1), (1, -1), (0, 2), (2, 0))
+"""(dr, di) of each spring set of a grid cloth: set s joins grid point (r, i)
+to (r + dr, i + di) (see :mod:`.springs`)"""
+
 BLOCK = 64
 """springs the Provot pass checks together: one bit each in a 64-bit word"""
 

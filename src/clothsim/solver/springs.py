@@ -32,13 +32,12 @@ from numba import njit
 
 from ..model import BENDING, SHEARING, STRUCTURAL
 from .provot import MAX_STRETCH
-from .shared import KERNEL_OPTIONS, over_length
+from .shared import KERNEL_OPTIONS, SET_STEP, over_length
+from .spring_lanes import LANES, integrate_eights
 
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
 """the spring kind of each stencil set"""
 
-SET_STEP = ((0, 1), (1, 0), (1, 1), (1, -1), (0, 2), (2, 0))
-"""(dr, di) of each stencil set"""
 
 CHUNK = 512
 """points per chunk of the force loop: their forces stay in cache until gathered"""
@@ -82,6 +81,11 @@ class GridSprings(NamedTuple):
     for none: spring p with ``p % cols`` among them is the one ``valid`` weighs 0.
     The force loop computes every slot with no weight (one load and one multiply
     fewer a spring) and then zeroes these few, at most two a row"""
+    gaps: np.ndarray
+    """the slots with no spring by eights, uint8 (6, ceil(N / 8)): bit j of
+    ``gaps[s, e]`` is set where slot ``8 e + j`` of set s is one ``valid``
+    weighs 0, or lies past ``count[s]``; the eights' force pass zeroes those
+    lanes (see :mod:`.spring_lanes`)"""
     cols: int
     """points in a grid row"""
     ahead: int
@@ -122,11 +126,21 @@ def build_stencil(rest_positions: np.ndarray, pinned: np.ndarray, rows: int, col
         batch[s, p] = ((i[p] if dr == 0 else r[p]) // step) % 2
         limit[s, p[ok]] = MAX_STRETCH * rest[s, p[ok]]
     wrap = wrap_columns(valid, count, cols)
-    for arr in (start, end, count, valid, rest, limit, batch, share, wrap):
+    gaps = gap_bits(valid)
+    for arr in (start, end, count, valid, rest, limit, batch, share, wrap, gaps):
         arr.setflags(write=False)
     ahead = int((end.max() + AHEAD_STEP - 1) // AHEAD_STEP * AHEAD_STEP)
     return GridSprings(start=start, end=end, count=count, valid=valid, rest=rest, limit=limit, batch=batch,
-                       share=share, wrap=wrap, cols=int(cols), ahead=ahead)
+                       share=share, wrap=wrap, gaps=gaps, cols=int(cols), ahead=ahead)
+
+
+def gap_bits(valid: np.ndarray) -> np.ndarray:
+    """:attr:`GridSprings.gaps` of the (6, N) weights ``valid``."""
+    n = valid.shape[1]
+    eights = -(-n // 8)
+    missing = np.ones((valid.shape[0], 8 * eights), dtype=bool)
+    missing[:, :n] = valid == 0
+    return np.packbits(missing.reshape(valid.shape[0], eights, 8), axis=2, bitorder="little")[:, :, 0]
 
 
 def wrap_columns(valid: np.ndarray, count: np.ndarray, cols: int) -> np.ndarray:
@@ -147,10 +161,11 @@ def wrap_columns(valid: np.ndarray, count: np.ndarray, cols: int) -> np.ndarray:
 
 
 def force_buffer(stencil: GridSprings, num_points: int) -> np.ndarray:
-    """Scratch for :func:`integrate_range`: each set's spring forces, zero-padded in
+    """Scratch for :func:`integrate`: each set's spring forces, zero-padded in
     front so that ``F[s, c, pad + p]`` is spring p and every index a point
-    reads stays inside, (6, 3, pad + N)."""
-    return np.zeros((6, 3, int(stencil.end.max()) + 1 + num_points))
+    reads stays inside, (6, 3, pad + N); the pad holds at least the eight
+    slots the eights read before their first (:mod:`.spring_lanes`)."""
+    return np.zeros((6, 3, max(int(stencil.end.max()) + 1, LANES) + num_points))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -170,10 +185,13 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     Spring forces go to the (6, 3, pad + N) buffer ``F`` first, then each
     point gathers its twelve: ``a[q] = g + sum_s F_s[q - start_s] - F_s[q - end_s]``.
     That reads each force twice but writes each acceleration once, instead
-    of adding into both ends of every spring. The cloth is walked in chunks
-    of CHUNK points so the forces are still in cache when gathered. A chunk's
-    springs only look forward (both ends at ``p`` or later), so a point can
-    be moved as soon as its chunk is gathered: no later chunk reads it.
+    of adding into both ends of every spring. The cloth is walked
+    eight points at a time (:mod:`.spring_lanes`), the forces of an eight's
+    springs and then its step, and the last rows, whose springs would reach
+    past the end, in chunks of CHUNK points (:func:`integrate_chunks`), both
+    with the same sums in the same order. A spring's ends are both at its
+    start ``p`` or later, so a point can be moved as soon as its own springs'
+    forces are in: no later eight or chunk reads it.
     """
     k_over_m = knobs.k_over_m
     # the switch of verlet_gather is a constant: compiled for each value, its
@@ -181,6 +199,20 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     if not has_springs(k_over_m):
         verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, False)
         return
+    done = first
+    if first % LANES == 0 and (moved - first) % LANES == 0:
+        done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
+    integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
+
+
+@njit(**KERNEL_OPTIONS)
+def integrate_chunks(P, L, free, knobs, springs, F, first, stop, moved):
+    """:func:`integrate` as numba's loops, a chunk at a time: the springs'
+    forces of CHUNK points, then their gathering with the Verlet step. It
+    takes the points :func:`.spring_lanes.integrate_eights` leaves (the last
+    rows, whose springs would reach past the cloth's end) and is what the
+    tests hold the eights to."""
+    k_over_m = knobs.k_over_m
     for lo in range(first, stop, CHUNK):
         hi = min(lo + CHUNK, stop)
         spring_forces(P, k_over_m, springs, F, lo, hi)

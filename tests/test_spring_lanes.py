@@ -1,0 +1,99 @@
+"""The springs' eights (:mod:`clothsim.solver.spring_lanes`) against numba's loops, to the bit.
+
+:func:`integrate` moves every point but those of the last rows through the
+LLVM vector code of the eights; :func:`integrate_chunks` is the loops it
+replaced. Both must give the same positions, last positions and force
+buffer, bit for bit, on any grid (rows shorter than eight points and
+longer), any spring constants (kinds switched off among them), pins, and
+the ranges a thread's part takes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from clothsim.solver.spring_lanes import LANES, integrate_eights
+from clothsim.solver.springs import CHUNK, build_stencil, force_buffer, gap_bits, integrate, integrate_chunks
+
+from .test_solver import grid_model, knobs, planes, stencil
+
+
+def _state(nw, nh, seed, pins=()):
+    """a grid cloth stretched and shaken at random: positions and last positions as planes"""
+    m = grid_model(nw, nh, pinned=pins, spacing=0.1)
+    rng = np.random.default_rng(seed)
+    P = planes(m.rest_positions * rng.uniform(0.8, 1.3) + rng.normal(0.0, 0.02, m.rest_positions.shape))
+    L = P + rng.normal(0.0, 0.005, P.shape)
+    return m, P, L
+
+
+def _both(m, P, L, k, first, stop, moved):
+    """(P, L, F) after integrate and after integrate_chunks, from the same state"""
+    springs = stencil(m)
+    free = (~m.pinned).astype(np.float64)
+    out = []
+    for step in (integrate, integrate_chunks):
+        p, last, F = P.copy(), L.copy(), force_buffer(springs, P.shape[1])
+        step(p, last, free, k, springs, F, first, stop, moved)
+        out.append((p, last, F))
+    return out
+
+
+def _same_bits(a, b):
+    return np.array_equal(np.ascontiguousarray(a).view(np.int64), np.ascontiguousarray(b).view(np.int64))
+
+
+@settings(max_examples=40, deadline=None)
+@given(nw=st.integers(2, 40), nh=st.integers(2, 40), seed=st.integers(0, 2**32 - 1),
+       off=st.lists(st.booleans(), min_size=6, max_size=6), pinned=st.booleans())
+def test_the_eights_move_the_cloth_as_the_loops_do(nw, nh, seed, off, pinned):
+    pins = [[0, 0], [nw - 1, 0]] if pinned else ()
+    m, P, L = _state(nw, nh, seed, pins)
+    k_sets = np.where(off, 0.0, np.random.default_rng(seed).uniform(50.0, 5000.0, 6))
+    if not k_sets.any():
+        k_sets[0] = 100.0  # with every kind off integrate takes its gravity-only loop
+    k = knobs(k_sets, (0.0, -9.8, 0.3), 0.998, 1e-5)
+    (pa, la, fa), (pb, lb, fb) = _both(m, P, L, k, 0, nw * nh, 0)
+    assert _same_bits(pa, pb) and _same_bits(la, lb) and _same_bits(fa, fb)
+    assert not np.array_equal(pa, P)  # the step moved the cloth
+
+
+def test_a_part_of_the_cloth_moves_as_the_loops_move_it():
+    """the ranges a thread's part takes: from a chunk's start, the first points
+    left unmoved (the previous part's springs still read them)"""
+    m, P, L = _state(60, 50, 7, pins=[[0, 0], [59, 0]])
+    k = knobs(np.full(6, 3000.0), (0.0, -9.8, 0.0), 0.998, 1e-5)
+    n = 60 * 50
+    for first, stop, moved in ((0, n, 0), (CHUNK, n, CHUNK + 128), (0, 2 * CHUNK, 0), (CHUNK, 2 * CHUNK, CHUNK + 8)):
+        (pa, la, fa), (pb, lb, fb) = _both(m, P, L, k, first, stop, moved)
+        assert _same_bits(pa, pb) and _same_bits(la, lb) and _same_bits(fa, fb)
+        assert np.array_equal(pa[:, :moved], P[:, :moved])  # the points before moved stay
+
+
+def test_the_eights_stop_where_a_spring_would_reach_past_the_cloth():
+    m, P, L = _state(30, 20, 3)
+    springs = stencil(m)
+    k = knobs(np.full(6, 3000.0), (0.0, -9.8, 0.0), 0.998, 1e-5)
+    n = 600
+    done = integrate_eights(P.copy(), L.copy(), np.ones(n), k, springs, force_buffer(springs, n), 0, n, 0)
+    reach = int(max(springs.start.max(), springs.end.max()))
+    assert done % LANES == 0 and done + LANES > n - reach >= done
+
+
+def test_gaps_mark_every_slot_without_a_spring():
+    m = grid_model(11, 5)
+    springs = stencil(m)
+    bits = np.unpackbits(springs.gaps, axis=1, bitorder="little")[:, :springs.valid.shape[1]]
+    assert np.array_equal(bits == 1, springs.valid == 0)
+    assert np.array_equal(gap_bits(np.ones((6, 3))), np.zeros((6, 1), np.uint8) | np.uint8(0b11111000))
+    assert build_stencil(m.rest_positions, m.pinned, 5, 11).gaps.dtype == np.uint8
+
+
+def test_the_force_buffer_holds_the_eight_read_before_the_first():
+    """the step of the first eight reads the eight slots before it, inside the pad
+    even where the springs reach back fewer (rows of two or three points)"""
+    for nw in (2, 3, 4, 50):
+        m = grid_model(nw, 4)
+        assert force_buffer(stencil(m), 4 * nw).shape[2] - 4 * nw >= LANES
