@@ -1,8 +1,9 @@
 """The springs' eights (:mod:`clothsim.solver.spring_lanes`) against numba's loops, to the bit.
 
-:func:`integrate` moves every point but those of the last rows through the
-LLVM vector code of the eights; :func:`integrate_chunks` is the loops it
-replaced. Both must give the same positions, last positions and force
+Where numba compiles for AVX-512 (``springs.EIGHTS``), :func:`integrate` moves every
+point but those of the last rows through the LLVM vector code of the eights;
+:func:`integrate_chunks` is the loops it replaced, which take the whole
+cloth elsewhere. The eights are checked on every machine. Both must give the same positions, last positions and force
 buffer, bit for bit, on any grid (rows shorter than eight points and
 longer), any spring constants (kinds switched off among them), pins, and
 the ranges a thread's part takes.
@@ -29,12 +30,18 @@ def _state(nw, nh, seed, pins=()):
     return m, P, L
 
 
+def _eights(P, L, free, knobs, springs, F, first, stop, moved):
+    """integrate as it runs where EIGHTS: the eights, then the loops for the rest"""
+    done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
+    integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
+
+
 def _both(m, P, L, k, first, stop, moved):
-    """(P, L, F) after integrate and after integrate_chunks, from the same state"""
+    """(P, L, F) after the eights and the loops and after the loops alone, from the same state"""
     springs = stencil(m)
     free = (~m.pinned).astype(np.float64)
     out = []
-    for step in (integrate, integrate_chunks):
+    for step in (_eights, integrate_chunks):
         p, last, F = P.copy(), L.copy(), force_buffer(springs, P.shape[1])
         step(p, last, free, k, springs, F, first, stop, moved)
         out.append((p, last, F))
@@ -97,3 +104,4 @@ def test_the_force_buffer_holds_the_eight_read_before_the_first():
     for nw in (2, 3, 4, 50):
         m = grid_model(nw, 4)
         assert force_buffer(stencil(m), 4 * nw).shape[2] - 4 * nw >= LANES
+

@@ -33,6 +33,7 @@ from numba import njit
 from ..model import BENDING, SHEARING, STRUCTURAL
 from .provot import MAX_STRETCH
 from .shared import KERNEL_OPTIONS, SET_STEP, over_length
+from .simd import has_avx512f
 from .spring_lanes import LANES, integrate_eights
 
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
@@ -48,6 +49,13 @@ bits. Rounded up to a CHUNK, as it was, one thread moved a whole chunk of the
 next part after the loop where the springs reach two rows and two points,
 all in lines the other core had just written and fetches back the next
 substep (docs/performance.md, 'The points ahead of a cut')"""
+
+EIGHTS = has_avx512f()
+"""whether :func:`integrate` takes the cloth eight points at a time
+(:mod:`.spring_lanes`): where numba compiles for AVX-512, whose 32 vector
+registers hold an eight's forces. With AVX2's 16 the eights' code spilled,
+and the loops ran faster (docs/performance.md, 'The springs eight points at
+a time')"""
 
 NO_LIMIT = 1e30
 """the Provot limit where a set has no spring: never reached"""
@@ -200,7 +208,7 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
         verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, False)
         return
     done = first
-    if first % LANES == 0 and (moved - first) % LANES == 0:
+    if EIGHTS and first % LANES == 0 and (moved - first) % LANES == 0:
         done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
     integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
 
