@@ -89,6 +89,18 @@ def test_the_eights_stop_where_a_spring_would_reach_past_the_cloth():
     assert done % LANES == 0 and done + LANES > n - reach >= done
 
 
+def test_the_eights_leave_a_range_or_buffer_they_cannot_read_inside_to_the_loops():
+    m, P, L = _state(20, 20, 5)
+    springs = stencil(m)
+    k = knobs(np.full(6, 3000.0), (0.0, -9.8, 0.0), 0.998, 1e-5)
+    free, F = np.ones(400), force_buffer(springs, 400)
+    for first, moved in ((4, 4), (8, 12), (-8, 0)):
+        assert integrate_eights(P.copy(), L.copy(), free, k, springs, F, first, 400, moved) == first
+    short = np.zeros((6, 3, 400 + 4))  # a pad of four slots
+    assert integrate_eights(P.copy(), L.copy(), free, k, springs, short, 0, 400, 0) == 0
+    assert integrate_eights(P.copy(), L.copy(), free, k, springs, F, 0, 400, 0) > 0
+
+
 def test_gaps_mark_every_slot_without_a_spring():
     m = grid_model(11, 5)
     springs = stencil(m)

@@ -249,8 +249,11 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
     multiple of LANES) for as long as eight more points lie before ``stop``
     and every spring of the eight has both ends inside the cloth. Returns
     the point where it stopped: the caller's loops take the rest. The points
-    before ``moved`` get their forces and are not moved; ``moved - first``
-    must be a multiple of LANES."""
+    before ``moved`` get their forces and are not moved. Where ``first`` or
+    ``moved - first`` is not a multiple of LANES, or the arrays are too short
+    for an eight's reads (a force buffer whose pad holds fewer than LANES
+    slots, see :func:`.springs.force_buffer`), it does nothing and returns
+    ``first``."""
     start, end, rest, gaps = springs.start, springs.end, springs.rest, springs.gaps
     k, g = knobs.k_over_m, knobs.gravity
     n = P.shape[1]
@@ -259,6 +262,9 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
     for s in range(SETS):
         reach = max(reach, start[s], end[s])
     last = min(stop, n - reach)
+    if first < 0 or first % LANES != 0 or (moved - first) % LANES != 0 or pad < max(reach + 1, LANES) \
+            or rest.shape[1] < n or free.shape[0] < n or L.shape[1] < n or gaps.shape[1] * LANES < n:
+        return first  # not a range or buffer the eights can read inside: the loops take it all
     ends = (start[0], start[1], start[2], start[3], start[4], start[5],
             end[0], end[1], end[2], end[3], end[4], end[5])
     ks = (k[0], k[1], k[2], k[3], k[4], k[5])

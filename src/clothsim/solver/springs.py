@@ -39,7 +39,6 @@ from .spring_lanes import LANES, integrate_eights
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
 """the spring kind of each stencil set"""
 
-
 CHUNK = 512
 """points per chunk of the force loop: their forces stay in cache until gathered"""
 
@@ -193,11 +192,11 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     Spring forces go to the (6, 3, pad + N) buffer ``F`` first, then each
     point gathers its twelve: ``a[q] = g + sum_s F_s[q - start_s] - F_s[q - end_s]``.
     That reads each force twice but writes each acceleration once, instead
-    of adding into both ends of every spring. The cloth is walked
-    eight points at a time (:mod:`.spring_lanes`), the forces of an eight's
-    springs and then its step, and the last rows, whose springs would reach
-    past the end, in chunks of CHUNK points (:func:`integrate_chunks`), both
-    with the same sums in the same order. A spring's ends are both at its
+    of adding into both ends of every spring. Where EIGHTS, the cloth is
+    walked eight points at a time (:mod:`.spring_lanes`), the forces of an
+    eight's springs and then its step; elsewhere, and for the last rows,
+    whose springs would reach past the end, in chunks of CHUNK points
+    (:func:`integrate_chunks`), with the same sums in the same order. A spring's ends are both at its
     start ``p`` or later, so a point can be moved as soon as its own springs'
     forces are in: no later eight or chunk reads it.
     """
@@ -207,9 +206,7 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     if not has_springs(k_over_m):
         verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, False)
         return
-    done = first
-    if EIGHTS and first % LANES == 0 and (moved - first) % LANES == 0:
-        done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
+    done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved) if EIGHTS else first
     integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
 
 
