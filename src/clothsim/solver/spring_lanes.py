@@ -31,11 +31,14 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from .colliders.lanes import FAST, LANES, Lanes
+from .colliders.lanes import FAST
 from .shared import DIVIDE, KERNEL_OPTIONS, SET_STEP
-from .simd import _vector_at
+from .simd import _splat, _vector_at
 
 __all__ = ["LANES", "force_lanes", "integrate_eights", "spring_step_lanes"]
+
+LANES = 8
+"""points a call takes: one vector of eight doubles, a 512-bit register"""
 
 SETS = len(SET_STEP)
 """spring sets of a grid cloth"""
@@ -79,84 +82,129 @@ def _check_forces(P, rest, gaps, F, k_over_m):
     _floats(k_over_m, SETS)
 
 
-def _over_length(lanes, a, l2):
-    """a / sqrt(l2) for eight lanes, as :func:`.shared.over_length` computes it
-    (a double square root and divide, or the single-precision estimate and
-    one Newton step, as :data:`.shared.DIVIDE` chooses)."""
-    b = lanes.builder
-    tiny = lanes.splat(ir.Constant(ir.DoubleType(), 1e-30))
-    l2c = lanes.pick(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)
+class _Vector:
+    """LANES doubles of LLVM vector code, with numba's fast-math flags."""
+
+    def __init__(self, context, builder):
+        self.context, self.b, self.width = context, builder, LANES
+        self.vec = ir.VectorType(ir.DoubleType(), LANES)
+        self.bits = ir.VectorType(ir.IntType(1), LANES)
+        self.intp = context.get_value_type(types.intp)
+
+    def splat(self, value):
+        return _splat(self.b, value, self.vec)
+
+    def constant(self, x):
+        return ir.Constant(self.vec, [x] * self.width)
+
+    def at(self, array_type, array, *index):
+        """the vector's pointer at ``array[index]``, ints or intp values"""
+        index = [ir.Constant(self.intp, i) if isinstance(i, int) else i for i in index]
+        return _vector_at(self.context, self.b, array_type, array, index, self.vec)
+
+    def load(self, array_type, array, *index):
+        return self.b.load(self.at(array_type, array, *index), align=8)
+
+    def sub(self, a, c):
+        return self.b.fsub(a, c, flags=FAST)
+
+    def add(self, a, c):
+        return self.b.fadd(a, c, flags=FAST)
+
+    def mul(self, a, c):
+        return self.b.fmul(a, c, flags=FAST)
+
+    def call(self, name, args, vec=None):
+        vec = vec or self.vec
+        fn = cgutils.get_or_insert_function(self.b.module, ir.FunctionType(vec, [vec] * len(args)),
+                                            f"llvm.{name}.v{self.width}f{32 if vec.element == ir.FloatType() else 64}")
+        return self.b.call(fn, args, fastmath=FAST if name != "fmuladd" else IN_ORDER)
+
+
+def _over_length(v, a, l2):
+    """a / sqrt(l2), as :func:`.shared.over_length` computes it (a double
+    square root and divide, or the single-precision estimate and one Newton
+    step, as :data:`.shared.DIVIDE` chooses)."""
+    b = v.b
+    tiny = v.constant(1e-30)
+    l2c = b.select(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)
     if DIVIDE:
-        return lanes.div(a, lanes.sqrt(l2c))
-    vec32 = ir.VectorType(ir.FloatType(), LANES)
-    sqrt32 = cgutils.get_or_insert_function(b.module, ir.FunctionType(vec32, [vec32]), "llvm.sqrt.v8f32")
-    one32 = ir.Constant(vec32, [1.0] * LANES)
-    y32 = b.fdiv(one32, b.call(sqrt32, [b.fptrunc(l2c, vec32)], fastmath=FAST), flags=FAST)
-    y = b.fpext(y32, lanes.vec)
-    half = lanes.splat(ir.Constant(ir.DoubleType(), 0.5))
-    three_halves = lanes.splat(ir.Constant(ir.DoubleType(), 1.5))
-    step = lanes.sub(three_halves, lanes.mul(lanes.mul(lanes.mul(half, l2), y), y))
-    return lanes.mul(a, lanes.mul(y, step))
+        return b.fdiv(a, v.call("sqrt", [l2c]), flags=FAST)
+    vec32 = ir.VectorType(ir.FloatType(), v.width)
+    y32 = b.fdiv(ir.Constant(vec32, [1.0] * v.width), v.call("sqrt", [b.fptrunc(l2c, vec32)], vec32), flags=FAST)
+    y = b.fpext(y32, v.vec)
+    step = v.sub(v.constant(1.5), v.mul(v.mul(v.mul(v.constant(0.5), l2), y), y))
+    return v.mul(a, v.mul(y, step))
 
 
-def _forces(context, b, types_, values):
-    """The body of :func:`force_lanes` (its first nine arguments): stores the
-    forces and returns them, [set][coordinate] vectors."""
-    P_t, rest_t, gaps_t, F_t, at_t, pad_t, ends_t, k_t, off_t = types_[:9]
-    P_v, rest_v, gaps_v, F_v, at_v, pad_v, ends_v, k_v, off_v = values[:9]
-    lanes = Lanes(context, b)
-    intp = context.get_value_type(types.intp)
-    at = context.cast(b, at_v, at_t, types.intp)
-    eight = b.ashr(at, ir.Constant(intp, 3))
-    pad = context.cast(b, pad_v, pad_t, types.intp)
-    ends = [context.cast(b, e, ends_t.dtype, types.intp) for e in _ints(b, ends_t, ends_v, 2 * SETS)]
-    offs = _ints(b, off_t, off_v, SETS)
-    ks = lanes.numbers(k_t, k_v)
-    zero = ir.Constant(lanes.vec, None)
-    byte = ir.IntType(LANES)
-    gaps = context.make_array(gaps_t)(context, b, gaps_v)
+class _Pass:
+    """One call's forces (and step): the arguments unpacked, the code emitted
+    set by set."""
 
-    def plane(c, i):
-        return b.load(_vector_at(context, b, P_t, P_v, [ir.Constant(intp, c), i], lanes.vec), align=8)
+    def __init__(self, context, b, types_, values):
+        P_t, rest_t, gaps_t, F_t, at_t, pad_t, ends_t, k_t, off_t = types_[:9]
+        P_v, rest_v, gaps_v, F_v, at_v, pad_v, ends_v, k_v, off_v = values[:9]
+        self.v = v = _Vector(context, b)
+        self.b = b
+        self.P, self.rest, self.F = (P_t, P_v), (rest_t, rest_v), (F_t, F_v)
+        self.at = context.cast(b, at_v, at_t, types.intp)
+        self.base = b.add(context.cast(b, pad_v, pad_t, types.intp), self.at)
+        self.ends = [context.cast(b, e, ends_t.dtype, types.intp) for e in _ints(b, ends_t, ends_v, 2 * SETS)]
+        self.offs = _ints(b, off_t, off_v, SETS)
+        self.ks = [v.splat(k) for k in cgutils.unpack_tuple(b, k_v, SETS)]
+        gaps = context.make_array(gaps_t)(context, b, gaps_v)
+        eight = b.ashr(self.at, ir.Constant(v.intp, 3))  # the call's byte of gaps
+        self.gap_at = lambda s: cgutils.get_item_pointer(context, b, gaps_t, gaps, [ir.Constant(v.intp, s), eight],
+                                                         wraparound=False)
 
-    out = []
-    for s in range(SETS):
+    def forces(self, s):
+        """set s's forces at the call's points, stored and returned (x, y, z)"""
+        v, b = self.v, self.b
         # each set loads its ends afresh: the loads shared between sets (both
         # ends of set 3 are other sets' ends), LLVM fused the sums' products
         # otherwise than in numba's loop, and the forces rounded differently
-        ia, ib = b.add(at, ends[s]), b.add(at, ends[SETS + s])
-        d = [lanes.sub(plane(c, ib), plane(c, ia)) for c in range(3)]
-        l2 = lanes.add(lanes.add(lanes.mul(d[0], d[0]), lanes.mul(d[1], d[1])), lanes.mul(d[2], d[2]))
-        rl = b.load(_vector_at(context, b, rest_t, rest_v, [ir.Constant(intp, s), at], lanes.vec), align=8)
-        f = lanes.sub(ks[s], _over_length(lanes, lanes.mul(ks[s], rl), l2))
-        gap_ptr = cgutils.get_item_pointer(context, b, gaps_t, gaps, [ir.Constant(intp, s), eight],
-                                           wraparound=False)
-        bits = b.bitcast(b.or_(b.load(gap_ptr), b.trunc(offs[s], byte)), lanes.bits)
-        out.append([])
+        ia, ib = b.add(self.at, self.ends[s]), b.add(self.at, self.ends[SETS + s])
+        d = [v.sub(v.load(*self.P, c, ib), v.load(*self.P, c, ia)) for c in range(3)]
+        l2 = v.add(v.add(v.mul(d[0], d[0]), v.mul(d[1], d[1])), v.mul(d[2], d[2]))
+        f = v.sub(self.ks[s], _over_length(v, v.mul(self.ks[s], v.load(*self.rest, s, self.at)), l2))
+        gap = b.bitcast(b.or_(b.load(self.gap_at(s)), b.trunc(self.offs[s], ir.IntType(LANES))), v.bits)
+        out = []
         for c in range(3):
-            value = lanes.pick(bits, zero, lanes.mul(f, d[c]))
-            ptr = _vector_at(context, b, F_t, F_v, [ir.Constant(intp, s), ir.Constant(intp, c), b.add(pad, at)],
-                             lanes.vec)
-            b.store(value, ptr, align=8)
-            out[s].append(value)
-    return out
+            value = b.select(gap, ir.Constant(v.vec, None), v.mul(f, d[c]))
+            b.store(value, v.at(*self.F, s, c, self.base), align=8)
+            out.append(value)
+        return out
+
+    def stored(self, s, c, back):
+        """the forces of set s at the call's points less ``back`` (an intp), from the buffer"""
+        return self.b.load(self.v.at(*self.F, s, c, self.b.sub(self.base, back)), align=8)
+
+    def near(self, forces, s, c, shift):
+        """the forces of set s ``shift`` points back: the call's own, shifted
+        across from the lanes before it where ``shift`` > 0"""
+        if shift == 0:
+            return forces[c]
+        before = self.stored(s, c, ir.Constant(self.v.intp, LANES))
+        picks = ir.Constant(ir.VectorType(ir.IntType(32), LANES), [LANES + j - shift for j in range(LANES)])
+        return self.b.shuffle_vector(before, forces[c], picks)
 
 
 @intrinsic
 def force_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off):
-    """The forces of the six sets' springs that start at points ``at:at + LANES``
-    (``at`` a multiple of LANES) into the force buffer ``F`` (6, 3, pad + N)
-    at ``pad + at``: spring p of set s joins ``p + ends[s]`` to ``p + ends[6 +
-    s]`` of the (3, N) planes P, rest length ``rest[s, p]`` [m], constant
-    ``k_over_m[s]``. A lane is stored as 0 where its bit is set in ``gaps[s,
-    at / LANES]`` (:attr:`.springs.GridSprings.gaps`) or in ``off[s]`` (255
-    where set s is switched off). Nothing is bounds-checked: the caller keeps
-    every spring's ends inside P."""
+    """The forces of the six sets' springs that start at points ``at:at +
+    LANES`` (``at`` a multiple of LANES) into the force buffer ``F`` (6, 3, pad + N) at ``pad + at``: spring p of set s
+    joins ``p + ends[s]`` to ``p + ends[6 + s]`` of the (3, N) planes P, rest
+    length ``rest[s, p]`` [m], constant ``k_over_m[s]``. A lane is stored as
+    0 where its bit is set in ``gaps`` (:attr:`.springs.GridSprings.gaps`)
+    or in ``off[s]`` (255 where set s is switched off). Nothing is
+    bounds-checked: the caller keeps every spring's ends inside P."""
     _check_forces(P, rest, gaps, F, k_over_m)
     sig = types.void(P, rest, gaps, F, at, pad, ends, k_over_m, off)
 
     def codegen(context, builder, signature, args):
-        _forces(context, builder, signature.args, args)
+        one = _Pass(context, builder, signature.args, args)
+        for s in range(SETS):
+            one.forces(s)
         return context.get_dummy_value()
 
     return sig, codegen
@@ -164,96 +212,72 @@ def force_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off):
 
 @intrinsic
 def spring_step_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off, L, free, motion):
-    """:func:`force_lanes` and then the Verlet step of the same eight points
-    ``at:at + LANES`` of the (3, N) planes P (moved in place) and L (set to
-    where the points were), as :func:`.springs.verlet_gather` takes it:
-    ``a = g + sum_s F_s[q - ends[s]] - F_s[q - ends[6 + s]]``, ``x' = x +
-    free (keep (x - x_last) + a dt²)``; ``motion``: gravity (3) [m/s²],
-    keep, dt² [s²]. The forces the eight just computed are taken as
-    computed, and those at the offsets of :data:`NEAR` shifted across from
-    the eight before, read where it was stored whole: a read across the
-    eight just stored would wait for the stores to reach the cache. The
-    buffer's pad must hold at least LANES slots (:func:`.springs.force_buffer`).
-    Nothing is bounds-checked."""
+    """:func:`force_lanes` and then the Verlet step of the same points of the
+    (3, N) planes P (moved in place) and L (set to where the points were), as
+    :func:`.springs.verlet_gather` takes it: ``a = g + sum_s F_s[q - ends[s]]
+    - F_s[q - ends[6 + s]]``, ``x' = x + free (keep (x - x_last) + a dt²)``;
+    ``motion``: gravity (3) [m/s²], keep, dt² [s²]. The forces the call
+    just computed are taken as computed, and those at the offsets of
+    :data:`NEAR` shifted across from the lanes before, read where they were
+    stored whole: a read across the lanes just stored would wait for the
+    stores to reach the cache. The buffer's pad must hold at least LANES
+    slots (:func:`.springs.force_buffer`). Nothing is bounds-checked."""
+    _check_forces(P, rest, gaps, F, k_over_m)
     if not (_is_array(L, 2) and _is_array(free, 1)):
         raise TypingError("spring_step_lanes takes C float64 (3, N) and (N,) arrays")
-    _check_forces(P, rest, gaps, F, k_over_m)
     _floats(motion, 5)
     sig = types.void(P, rest, gaps, F, at, pad, ends, k_over_m, off, L, free, motion)
 
     def codegen(context, builder, signature, args):
         b = builder
-        forces = _forces(context, b, signature.args, args)
-        F_t, at_t, pad_t, ends_t = signature.args[3], signature.args[4], signature.args[5], signature.args[6]
-        F_v = args[3]
-        L_t, free_t, motion_t = signature.args[9:]
-        L_v, free_v, motion_v = args[9:]
-        P_t, P_v = signature.args[0], args[0]
-        lanes = Lanes(context, b)
-        intp = context.get_value_type(types.intp)
-        at = context.cast(b, args[4], at_t, types.intp)
-        base = b.add(context.cast(b, args[5], pad_t, types.intp), at)
-        ends = [context.cast(b, e, ends_t.dtype, types.intp) for e in _ints(b, ends_t, args[6], 2 * SETS)]
-        gravity0, gravity1, gravity2, keep, dt2 = lanes.numbers(motion_t, motion_v)
-        gravity = (gravity0, gravity1, gravity2)
-        fr = lanes.load(free_t, free_v, at)
-        index = ir.VectorType(ir.IntType(32), LANES)
-
-        def stored(s, c, back):
-            ptr = _vector_at(context, b, F_t, F_v, [ir.Constant(intp, s), ir.Constant(intp, c), b.sub(base, back)],
-                             lanes.vec)
-            return b.load(ptr, align=8)
-
-        def near(s, c, shift):
-            if shift == 0:
-                return forces[s][c]
-            before = stored(s, c, ir.Constant(intp, LANES))
-            picks = ir.Constant(index, [LANES + j - shift for j in range(LANES)])
-            return b.shuffle_vector(before, forces[s][c], picks)
-
+        one = _Pass(context, b, signature.args, args)
+        v = one.v
+        L_t, free_t, motion_t = signature.args[9:12]
+        L_v, free_v, motion_v = args[9:12]
+        gravity0, gravity1, gravity2, keep, dt2 = (v.splat(x) for x in cgutils.unpack_tuple(b, motion_v, 5))
+        # the order LLVM gives numba's loop of verlet_gather: gravity and the
+        # starting ends' forces in one sum, the ending ends' in another, each
+        # set's terms added as soon as its forces are in (fewer live vectors)
+        pulls, pushes = [gravity0, gravity1, gravity2], [None] * 3
+        for s in range(SETS):
+            forces = one.forces(s)
+            back_a, back_b = NEAR[s]
+            for c in range(3):
+                fb = one.near(forces, s, c, back_b) if back_b is not None else one.stored(s, c, one.ends[SETS + s])
+                pulls[c] = b.fadd(one.near(forces, s, c, back_a), pulls[c], flags=IN_ORDER)
+                pushes[c] = fb if pushes[c] is None else b.fadd(pushes[c], fb, flags=IN_ORDER)
+        fr = v.load(free_t, free_v, one.at)
         for c in range(3):
-            # the order LLVM gives numba's loop of verlet_gather: gravity and the
-            # starting ends' forces in one sum, the ending ends' in another
-            pulls, pushes = gravity[c], None
-            for s in range(SETS):
-                back_a, back_b = NEAR[s]
-                fb = near(s, c, back_b) if back_b is not None else stored(s, c, ends[SETS + s])
-                pulls = b.fadd(near(s, c, back_a), pulls, flags=IN_ORDER)
-                pushes = fb if pushes is None else b.fadd(pushes, fb, flags=IN_ORDER)
-            a = b.fsub(pulls, pushes, flags=IN_ORDER)
-            kc = ir.Constant(intp, c)
-            xp = _vector_at(context, b, P_t, P_v, [kc, at], lanes.vec)
-            lp = _vector_at(context, b, L_t, L_v, [kc, at], lanes.vec)
+            a = b.fsub(pulls[c], pushes[c], flags=IN_ORDER)
+            xp, lp = v.at(*one.P, c, one.at), v.at(L_t, L_v, c, one.at)
             xq = b.load(xp, align=8)
             # the multiply-adds LLVM makes of numba's loop, spelled out: left to
             # LLVM, this code's sum fused the other product
             velocity = b.fsub(xq, b.load(lp, align=8), flags=IN_ORDER)
-            turn = _mul_add(b, velocity, keep, b.fmul(a, dt2, flags=IN_ORDER))
-            b.store(_mul_add(b, turn, fr, xq), xp, align=8)
+            turn = v.call("fmuladd", [velocity, keep, b.fmul(a, dt2, flags=IN_ORDER)])
+            b.store(v.call("fmuladd", [turn, fr, xq]), xp, align=8)
             b.store(xq, lp, align=8)
         return context.get_dummy_value()
 
     return sig, codegen
 
 
-def _mul_add(b, x, y, z):
-    """x y + z as one rounding where the target has a fused multiply-add, as
-    numba's loops compute it (``llvm.fmuladd``)"""
-    fn = cgutils.get_or_insert_function(b.module, ir.FunctionType(x.type, [x.type] * 3), "llvm.fmuladd.v8f64")
-    return b.call(fn, [x, y, z], fastmath=IN_ORDER)
+@njit(cache=True, inline="always")
+def _off(k):
+    """the zeroed lanes of a set whose constant is k: all where it is switched off"""
+    return np.int64(255) if k == 0.0 else np.int64(0)
 
 
 @njit(**KERNEL_OPTIONS)
 def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
-    """:func:`.springs.integrate` eight points at a time, from ``first`` (a
-    multiple of LANES) for as long as eight more points lie before ``stop``
-    and every spring of the eight has both ends inside the cloth. Returns
-    the point where it stopped: the caller's loops take the rest. The points
-    before ``moved`` get their forces and are not moved. Where ``first`` or
-    ``moved - first`` is not a multiple of LANES, or the arrays are too short
-    for an eight's reads (a force buffer whose pad holds fewer than LANES
-    slots, see :func:`.springs.force_buffer`), it does nothing and returns
-    ``first``."""
+    """:func:`.springs.integrate` eight points at a time, from ``first`` for as
+    long as eight more points lie before ``stop`` and every spring of them
+    has both ends inside the cloth. Returns the point where it stopped: the
+    caller's loops take the rest. The points before ``moved`` get their
+    forces and are not moved. Where ``first`` or ``moved - first`` is not a
+    multiple of LANES, or the arrays are too short for a call's reads (a
+    force buffer whose pad holds fewer than LANES slots, see
+    :func:`.springs.force_buffer`), it does nothing and returns ``first``."""
     start, end, rest, gaps = springs.start, springs.end, springs.rest, springs.gaps
     k, g = knobs.k_over_m, knobs.gravity
     n = P.shape[1]
@@ -264,7 +288,7 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
     last = min(stop, n - reach)
     if first < 0 or first % LANES != 0 or (moved - first) % LANES != 0 or pad < max(reach + 1, LANES) \
             or rest.shape[1] < n or free.shape[0] < n or L.shape[1] < n or gaps.shape[1] * LANES < n:
-        return first  # not a range or buffer the eights can read inside: the loops take it all
+        return first  # not a range or buffer the calls can read inside: the loops take it all
     ends = (start[0], start[1], start[2], start[3], start[4], start[5],
             end[0], end[1], end[2], end[3], end[4], end[5])
     ks = (k[0], k[1], k[2], k[3], k[4], k[5])
@@ -279,7 +303,3 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
         p += LANES
     return p
 
-
-@njit(cache=True, inline="always")
-def _off(k):
-    return np.int64(255) if k == 0.0 else np.int64(0)
