@@ -31,14 +31,11 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from .colliders.lanes import FAST
+from .colliders.lanes import FAST, LANES, Lanes
 from .shared import DIVIDE, KERNEL_OPTIONS, SET_STEP
-from .simd import _splat, _vector_at
+from .simd import _vector_at
 
 __all__ = ["LANES", "force_lanes", "integrate_eights", "spring_step_lanes"]
-
-LANES = 8
-"""points a call takes: one vector of eight doubles, a 512-bit register"""
 
 SETS = len(SET_STEP)
 """spring sets of a grid cloth"""
@@ -82,17 +79,15 @@ def _check_forces(P, rest, gaps, F, k_over_m):
     _floats(k_over_m, SETS)
 
 
-class _Vector:
-    """LANES doubles of LLVM vector code, with numba's fast-math flags."""
+class _Vector(Lanes):
+    """:class:`.colliders.lanes.Lanes` with what the springs' code needs
+    besides: pointers into arrays of more dimensions, constants in every
+    lane, and LLVM's other vector intrinsics by name."""
 
     def __init__(self, context, builder):
-        self.context, self.b, self.width = context, builder, LANES
-        self.vec = ir.VectorType(ir.DoubleType(), LANES)
-        self.bits = ir.VectorType(ir.IntType(1), LANES)
+        super().__init__(context, builder)
+        self.b, self.width = builder, LANES
         self.intp = context.get_value_type(types.intp)
-
-    def splat(self, value):
-        return _splat(self.b, value, self.vec)
 
     def constant(self, x):
         return ir.Constant(self.vec, [x] * self.width)
@@ -105,19 +100,13 @@ class _Vector:
     def load(self, array_type, array, *index):
         return self.b.load(self.at(array_type, array, *index), align=8)
 
-    def sub(self, a, c):
-        return self.b.fsub(a, c, flags=FAST)
-
-    def add(self, a, c):
-        return self.b.fadd(a, c, flags=FAST)
-
-    def mul(self, a, c):
-        return self.b.fmul(a, c, flags=FAST)
-
     def call(self, name, args, vec=None):
+        """``llvm.name`` on vectors of doubles (or of ``vec``), with numba's
+        fast-math flags (without ``reassoc`` for ``fmuladd``)"""
         vec = vec or self.vec
+        bits = 32 if vec.element == ir.FloatType() else 64
         fn = cgutils.get_or_insert_function(self.b.module, ir.FunctionType(vec, [vec] * len(args)),
-                                            f"llvm.{name}.v{self.width}f{32 if vec.element == ir.FloatType() else 64}")
+                                            f"llvm.{name}.v{self.width}f{bits}")
         return self.b.call(fn, args, fastmath=FAST if name != "fmuladd" else IN_ORDER)
 
 
