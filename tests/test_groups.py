@@ -273,7 +273,7 @@ def test_a_field_renamed_on_one_side_fails_the_checks():
     group, the kernels read a field it lacks and the new one goes unread"""
     assert {"k_over_m", "keep"} <= set(Knobs._fields)
     edited = dict(TREES)
-    for kernel in ("integrate", "gather_ahead"):
+    for kernel in ("integrate", "integrate_chunks", "integrate_eights", "gather_ahead"):
         source = textwrap.dedent(inspect.getsource(KERNELS[kernel])).replace("knobs.k_over_m", "knobs.k_per_m")
         edited[kernel] = ast.parse(source).body[0]
     assert unknown_fields(edited["integrate"], FIELDS) == {"knobs": {"k_per_m"}}
