@@ -86,41 +86,40 @@ class _Vector(Lanes):
 
     def __init__(self, context, builder):
         super().__init__(context, builder)
-        self.b, self.width = builder, LANES
         self.intp = context.get_value_type(types.intp)
 
     def constant(self, x):
-        return ir.Constant(self.vec, [x] * self.width)
+        return ir.Constant(self.vec, [x] * LANES)
 
     def at(self, array_type, array, *index):
         """the vector's pointer at ``array[index]``, ints or intp values"""
         index = [ir.Constant(self.intp, i) if isinstance(i, int) else i for i in index]
-        return _vector_at(self.context, self.b, array_type, array, index, self.vec)
+        return _vector_at(self.context, self.builder, array_type, array, index, self.vec)
 
     def load(self, array_type, array, *index):
-        return self.b.load(self.at(array_type, array, *index), align=8)
+        return self.builder.load(self.at(array_type, array, *index), align=8)
 
     def call(self, name, args, vec=None):
         """``llvm.name`` on vectors of doubles (or of ``vec``), with numba's
         fast-math flags (without ``reassoc`` for ``fmuladd``)"""
         vec = vec or self.vec
         bits = 32 if vec.element == ir.FloatType() else 64
-        fn = cgutils.get_or_insert_function(self.b.module, ir.FunctionType(vec, [vec] * len(args)),
-                                            f"llvm.{name}.v{self.width}f{bits}")
-        return self.b.call(fn, args, fastmath=FAST if name != "fmuladd" else IN_ORDER)
+        fn = cgutils.get_or_insert_function(self.builder.module, ir.FunctionType(vec, [vec] * len(args)),
+                                            f"llvm.{name}.v{LANES}f{bits}")
+        return self.builder.call(fn, args, fastmath=FAST if name != "fmuladd" else IN_ORDER)
 
 
 def _over_length(v, a, l2):
     """a / sqrt(l2), as :func:`.shared.over_length` computes it (a double
     square root and divide, or the single-precision estimate and one Newton
     step, as :data:`.shared.DIVIDE` chooses)."""
-    b = v.b
+    b = v.builder
     tiny = v.constant(1e-30)
     l2c = b.select(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)
     if DIVIDE:
         return b.fdiv(a, v.call("sqrt", [l2c]), flags=FAST)
-    vec32 = ir.VectorType(ir.FloatType(), v.width)
-    y32 = b.fdiv(ir.Constant(vec32, [1.0] * v.width), v.call("sqrt", [b.fptrunc(l2c, vec32)], vec32), flags=FAST)
+    vec32 = ir.VectorType(ir.FloatType(), LANES)
+    y32 = b.fdiv(ir.Constant(vec32, [1.0] * LANES), v.call("sqrt", [b.fptrunc(l2c, vec32)], vec32), flags=FAST)
     y = b.fpext(y32, v.vec)
     step = v.sub(v.constant(1.5), v.mul(v.mul(v.mul(v.constant(0.5), l2), y), y))
     return v.mul(a, v.mul(y, step))
