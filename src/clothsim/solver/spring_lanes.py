@@ -13,13 +13,19 @@ above, stored a row or two ago and still in the L1 cache. No later eight
 reads a moved point: a spring's ends are both at its start or after it.
 
 The arithmetic is :func:`.springs.spring_forces`' and
-:func:`.springs.verlet_gather`'s with numba's fast-math flags, in the order
-LLVM gives numba's loops (the sums and the multiply-adds spelled out where
-LLVM would order this code otherwise), so the positions are the same to the
-bit: ``tests/test_spring_lanes.py`` holds the two to it. The slots where a
-set has no spring (a row's wrap, or a kind switched off) are stored as
-zeros, as the loops store them: each set takes a byte whose bits pick the
-lanes to zero (:attr:`.springs.GridSprings.gaps`).
+:func:`.springs.verlet_gather`'s with numba's fast-math flags, the gathered
+sums and the step's multiply-adds in the order LLVM gives numba's loops.
+Two things differ, both for speed: the six ends the sets share are loaded
+once (:data:`END_KEYS`), and with AVX-512 the inverse length is the
+machine's estimate refined twice (:func:`_over_length`). The forces then
+differ from the loops' by up to 1e-13 of ``k |d|``, the loops' own error;
+without AVX-512 they are the same to the bit. ``tests/test_spring_lanes.py``
+holds the two to that. Every lane computes its own spring, so a spring's
+force does not depend on where a call starts: a thread's part gives the
+whole cloth's bits. The slots where a set has no spring (a row's wrap, or
+a kind switched off) are stored as zeros, as the loops store them: each set
+takes a byte whose bits pick the lanes to zero
+(:attr:`.springs.GridSprings.gaps`).
 """
 
 from __future__ import annotations
@@ -32,8 +38,8 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from .colliders.lanes import FAST, LANES, Lanes
-from .shared import DIVIDE, KERNEL_OPTIONS, SET_STEP
-from .simd import _vector_at
+from .shared import KERNEL_OPTIONS, SET_STEP
+from .simd import _vector_at, has_avx512f
 
 __all__ = ["LANES", "force_lanes", "integrate_eights", "spring_step_lanes"]
 
@@ -45,6 +51,22 @@ IN_ORDER = ("nnan", "ninf", "nsz", "arcp", "contract", "afn")
 in the order LLVM reassociates numba's own loop into: left free to
 reassociate, LLVM orders this code's terms otherwise (some are shifted
 vectors, not loads), and the sums round differently"""
+
+END_KEYS = tuple(((0, 1 if di < 0 else 0), (dr, max(di, 0))) for dr, di in SET_STEP)
+"""each set's two ends as (rows, points) along from a spring's start point
+``p`` (the ``start`` and ``end`` of :func:`.springs.build_stencil`): the sets
+share six ends, so an eight loads each of those once (18 vectors) rather
+than twice a set (36)"""
+
+SAME_ENDS = tuple((s + SETS * w, t + SETS * u) for s in range(SETS) for w in (0, 1)
+                  for t in range(SETS) for u in (0, 1) if (t, u) > (s, w) and END_KEYS[s][w] == END_KEYS[t][u])
+"""pairs of indices into ``start + end`` (12,) that :data:`END_KEYS` holds
+equal: :func:`integrate_eights` leaves springs whose ends differ from that
+to the loops"""
+
+RSQRT14 = has_avx512f()
+"""whether the inverse length is AVX-512's estimate refined twice (see
+:func:`_over_length`)"""
 
 NEAR = tuple((1 if di < 0 else 0, max(di, 0) if dr == 0 else None) for dr, di in SET_STEP)
 """each set's ends as offsets back from a point to the springs that reach it
@@ -110,19 +132,25 @@ class _Vector(Lanes):
 
 
 def _over_length(v, a, l2):
-    """a / sqrt(l2), as :func:`.shared.over_length` computes it (a double
-    square root and divide, or the single-precision estimate and one Newton
-    step, as :data:`.shared.DIVIDE` chooses)."""
+    """a / sqrt(l2) for squared lengths l2 [m²], finite at 0. With AVX-512,
+    its estimate of 1/sqrt (``vrsqrt14pd``, 14 bits) refined by two Newton
+    steps in double, to about 1e-15 relative: the single-precision square
+    root and divide of :func:`.shared.inv_length` that numba's loops use there
+    wait on the divider, and are a hundred times less exact (1e-13).
+    Elsewhere a double square root and divide, as :func:`.shared.over_length`
+    (:data:`.shared.DIVIDE`) computes it."""
     b = v.builder
     tiny = v.constant(1e-30)
     l2c = b.select(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)
-    if DIVIDE:
+    if not RSQRT14:
         return b.fdiv(a, v.call("sqrt", [l2c]), flags=FAST)
-    vec32 = ir.VectorType(ir.FloatType(), LANES)
-    y32 = b.fdiv(ir.Constant(vec32, [1.0] * LANES), v.call("sqrt", [b.fptrunc(l2c, vec32)], vec32), flags=FAST)
-    y = b.fpext(y32, v.vec)
-    step = v.sub(v.constant(1.5), v.mul(v.mul(v.mul(v.constant(0.5), l2), y), y))
-    return v.mul(a, v.mul(y, step))
+    estimate = cgutils.get_or_insert_function(b.module, ir.FunctionType(v.vec, [v.vec, v.vec, ir.IntType(8)]),
+                                              "llvm.x86.avx512.rsqrt14.pd.512")
+    y = b.call(estimate, [l2c, ir.Constant(v.vec, None), ir.Constant(ir.IntType(8), 255)])
+    half = v.mul(v.constant(0.5), l2c)
+    for _ in range(2):
+        y = v.mul(y, v.sub(v.constant(1.5), v.mul(v.mul(half, y), y)))
+    return v.mul(a, y)
 
 
 class _Pass:
@@ -140,6 +168,7 @@ class _Pass:
         self.ends = [context.cast(b, e, ends_t.dtype, types.intp) for e in _ints(b, ends_t, ends_v, 2 * SETS)]
         self.offs = _ints(b, off_t, off_v, SETS)
         self.ks = [v.splat(k) for k in cgutils.unpack_tuple(b, k_v, SETS)]
+        self.loaded = {}
         gaps = context.make_array(gaps_t)(context, b, gaps_v)
         eight = b.ashr(self.at, ir.Constant(v.intp, 3))  # the call's byte of gaps
         self.gap_at = lambda s: cgutils.get_item_pointer(context, b, gaps_t, gaps, [ir.Constant(v.intp, s), eight],
@@ -148,11 +177,7 @@ class _Pass:
     def forces(self, s):
         """set s's forces at the call's points, stored and returned (x, y, z)"""
         v, b = self.v, self.b
-        # each set loads its ends afresh: the loads shared between sets (both
-        # ends of set 3 are other sets' ends), LLVM fused the sums' products
-        # otherwise than in numba's loop, and the forces rounded differently
-        ia, ib = b.add(self.at, self.ends[s]), b.add(self.at, self.ends[SETS + s])
-        d = [v.sub(v.load(*self.P, c, ib), v.load(*self.P, c, ia)) for c in range(3)]
+        d = [v.sub(self.end(s, 1, c), self.end(s, 0, c)) for c in range(3)]
         l2 = v.add(v.add(v.mul(d[0], d[0]), v.mul(d[1], d[1])), v.mul(d[2], d[2]))
         f = v.sub(self.ks[s], _over_length(v, v.mul(self.ks[s], v.load(*self.rest, s, self.at)), l2))
         gap = b.bitcast(b.or_(b.load(self.gap_at(s)), b.trunc(self.offs[s], ir.IntType(LANES))), v.bits)
@@ -162,6 +187,15 @@ class _Pass:
             b.store(value, v.at(*self.F, s, c, self.base), align=8)
             out.append(value)
         return out
+
+    def end(self, s, which, c):
+        """coordinate c of end ``which`` (0: start, 1: end) of set s's springs
+        at the call's points, loaded once for every set that shares it"""
+        key = (END_KEYS[s][which], c)
+        if key not in self.loaded:
+            at = self.b.add(self.at, self.ends[s + SETS * which])
+            self.loaded[key] = self.v.load(*self.P, c, at)
+        return self.loaded[key]
 
     def stored(self, s, c, back):
         """the forces of set s at the call's points less ``back`` (an intp), from the buffer"""
@@ -279,6 +313,9 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
         return first  # not a range or buffer the calls can read inside: the loops take it all
     ends = (start[0], start[1], start[2], start[3], start[4], start[5],
             end[0], end[1], end[2], end[3], end[4], end[5])
+    for i, j in SAME_ENDS:
+        if ends[i] != ends[j]:
+            return first  # not a grid's stencil: the calls load one end for both
     ks = (k[0], k[1], k[2], k[3], k[4], k[5])
     off = (_off(k[0]), _off(k[1]), _off(k[2]), _off(k[3]), _off(k[4]), _off(k[5]))
     motion = (g[0], g[1], g[2], knobs.keep, knobs.dt2)
