@@ -173,6 +173,8 @@ def test_the_eights_leave_springs_that_are_not_a_grids_to_the_loops():
     start = springs.start.copy()
     start[3] = 2  # set 3 no longer starts where set 0 ends
     odd = springs._replace(start=start)
+    shifted = springs._replace(start=springs.start + 1, end=springs.end + 1)  # every spring a point along
     F = force_buffer(springs, 120)
     assert integrate_eights(P.copy(), L.copy(), np.ones(120), k, odd, F, 0, 120, 0) == 0
+    assert integrate_eights(P.copy(), L.copy(), np.ones(120), k, shifted, force_buffer(shifted, 120), 0, 120, 0) == 0
     assert integrate_eights(P.copy(), L.copy(), np.ones(120), k, springs, F, 0, 120, 0) > 0

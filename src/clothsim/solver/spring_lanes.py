@@ -272,7 +272,7 @@ def spring_step_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off,
         for c in range(3):
             a = b.fsub(pulls[c], pushes[c], flags=IN_ORDER)
             xp, lp = v.at(*one.P, c, one.at), v.at(L_t, L_v, c, one.at)
-            xq = b.load(xp, align=8)
+            xq = one.end(0, 0, c)  # set 0 starts at the point itself (checked by integrate_eights)
             # the multiply-adds LLVM makes of numba's loop, spelled out: left to
             # LLVM, this code's sum fused the other product
             velocity = b.fsub(xq, b.load(lp, align=8), flags=IN_ORDER)
@@ -313,6 +313,8 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
         return first  # not a range or buffer the calls can read inside: the loops take it all
     ends = (start[0], start[1], start[2], start[3], start[4], start[5],
             end[0], end[1], end[2], end[3], end[4], end[5])
+    if start[0] != 0:
+        return first  # not a grid's stencil: the step takes set 0's start for the point
     for i, j in SAME_ENDS:
         if ends[i] != ends[j]:
             return first  # not a grid's stencil: the calls load one end for both
