@@ -30,14 +30,20 @@ def machine() -> dict:
     except ImportError:  # a tree from before it (an A/B run): LLVM's 256 bits
         def widen() -> bool:
             return False
+    try:
+        from clothsim.solver.spring_lanes import RSQRT14
+    except ImportError:  # a tree from before it: the eights took the loops' inverse
+        RSQRT14 = False
+    inverse = "divide" if DIVIDE else "estimate"
 
     # the CPU's name does not say which code the kernels were compiled to: two
     # "AMD EPYC" machines here differ in AVX-512, and the springs in how they
     # take a length's inverse (docs/performance.md); vector_bits: how wide LLVM
     # made the loops (clothsim.vector_width; 256 also on a CPU without AVX-512,
-    # whose widest vectors those are)
+    # whose widest vectors those are); the grid's eights, where they run, take
+    # AVX-512's estimate refined twice, the loops the divide or the estimate
     return {"cpu": cpu, "avx512_code": has_compress(), "vector_bits": 512 if widen() else 256,
-            "inverse_length": "divide" if DIVIDE else "estimate",
+            "inverse_length": f"{inverse}, eights rsqrt14" if RSQRT14 else inverse,
             "python": platform.python_version(), "numpy": numpy.__version__,
             "numba": numba.__version__, "clothsim": clothsim.__version__}
 
