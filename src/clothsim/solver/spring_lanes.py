@@ -121,13 +121,11 @@ class _Vector(Lanes):
     def load(self, array_type, array, *index):
         return self.builder.load(self.at(array_type, array, *index), align=8)
 
-    def call(self, name, args, vec=None):
-        """``llvm.name`` on vectors of doubles (or of ``vec``), with numba's
-        fast-math flags (without ``reassoc`` for ``fmuladd``)"""
-        vec = vec or self.vec
-        bits = 32 if vec.element == ir.FloatType() else 64
-        fn = cgutils.get_or_insert_function(self.builder.module, ir.FunctionType(vec, [vec] * len(args)),
-                                            f"llvm.{name}.v{LANES}f{bits}")
+    def call(self, name, args):
+        """``llvm.name`` on vectors of doubles, with numba's fast-math flags
+        (without ``reassoc`` for ``fmuladd``)"""
+        fn = cgutils.get_or_insert_function(self.builder.module, ir.FunctionType(self.vec, [self.vec] * len(args)),
+                                            f"llvm.{name}.v{LANES}f64")
         return self.builder.call(fn, args, fastmath=FAST if name != "fmuladd" else IN_ORDER)
 
 
