@@ -12,7 +12,11 @@ points or pairs) and nanoseconds per item.
   gathering with the Verlet step, the Provot pass, and the Provot pass's check
   alone (its vector loop over every spring, without the corrections); then
   what a call from Python costs with no work to do, which each of these
-  figures includes and the compiled substep does not pay;
+  figures includes and the compiled substep does not pay; then the Provot
+  pass and its check again after 90 frames, on the positions the substep's
+  springs and step hand the pass, when some 500 springs a substep are over
+  their limit (a handful after 10 frames: the corrections cost next to
+  nothing there);
 - ``selfCollision`` at ``--size`` (100 by default) after its 2 s fall and
   settle, when the cloth lies piled up (or after ``--frame`` frames: 12 at
   90 frames a second finds it still falling, where two threads gain least),
@@ -175,6 +179,25 @@ def spring_stages(rounds: int, info: dict) -> None:
     us = best_us(lambda: spring_forces(s.P, knobs.k_over_m, springs, s.F, 0, 0), copy, 2000, rounds)
     emit({"bench": "stage", "stage": "call from Python, no work", "scene": "pinned2", "grid": "50x50",
           "threads": 1, "us_per_call": round(us, 2), **info})
+    # the Provot pass as a run meets it a second in, on the positions a
+    # substep's springs and step hand it: some 500 springs over their limit
+    # a substep, where the cloth above (10 frames) has a handful
+    for _ in range(80):
+        sim.step()
+    copy = Copy(sim)
+    integrate(s.P, s.L, free, knobs, springs, s.F, 0, n, 0)
+    copy.P0, copy.L0 = s.P.copy(), s.L.copy()
+    over = sum(int(np.count_nonzero(gap2_all(s.P, springs, t) > springs.limit[t, :springs.count[t]] ** 2))
+               for t in range(6))
+    for stage, call in (("Provot, after 1 s", calls["Provot"]), ("Provot check, after 1 s", calls["Provot check"])):
+        us = best_us(call, copy, 2000, rounds)
+        line(stage, "pinned2", "50x50", 1, us, slots, "springs", {**info, "frame": 90, "springs_over_limit": over})
+
+
+def gap2_all(P, springs, t):
+    """the squared lengths of set t's springs, (count,)"""
+    a, b, c = springs.start[t], springs.end[t], springs.count[t]
+    return ((P[:, b:b + c] - P[:, a:a + c]) ** 2).sum(axis=0)
 
 
 def piled_stages(size: int, rounds: int, info: dict, frame: int | None = None) -> None:
