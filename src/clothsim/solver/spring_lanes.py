@@ -39,7 +39,7 @@ from numba.extending import intrinsic
 
 from .colliders.lanes import FAST, LANES, Lanes
 from .shared import KERNEL_OPTIONS, SET_STEP
-from .simd import _vector_at, has_avx512f
+from .simd import _vector_at, has_compress
 
 __all__ = ["LANES", "force_lanes", "integrate_eights", "spring_step_lanes"]
 
@@ -64,9 +64,10 @@ SAME_ENDS = tuple((s + SETS * w, t + SETS * u) for s in range(SETS) for w in (0,
 equal: :func:`integrate_eights` leaves springs whose ends differ from that
 to the loops"""
 
-RSQRT14 = has_avx512f()
+RSQRT14 = has_compress()
 """whether the inverse length is AVX-512's estimate refined twice (see
-:func:`_over_length`)"""
+:func:`_over_length`): where numba compiles for AVX-512, unless
+``CLOTHSIM_NO_AVX512`` asks for the portable path, whose springs divide"""
 
 NEAR = tuple((1 if di < 0 else 0, max(di, 0) if dr == 0 else None) for dr, di in SET_STEP)
 """each set's ends as offsets back from a point to the springs that reach it
