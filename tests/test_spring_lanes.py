@@ -141,7 +141,6 @@ def test_the_force_buffer_holds_the_eight_read_before_the_first():
         assert force_buffer(stencil(m), 4 * nw).shape[2] - 4 * nw >= LANES
 
 
-
 @settings(max_examples=20, deadline=None)
 @given(nw=st.integers(2, 40), nh=st.integers(2, 40), seed=st.integers(0, 2**32 - 1))
 def test_the_eights_forces_are_within_1e_14_of_exact(nw, nh, seed):
