@@ -56,13 +56,8 @@ END_KEYS = tuple(((0, 1 if di < 0 else 0), (dr, max(di, 0))) for dr, di in SET_S
 """each set's two ends as (rows, points) along from a spring's start point
 ``p`` (the ``start`` and ``end`` of :func:`.springs.build_stencil`): the sets
 share six ends, so an eight loads each of those once (18 vectors) rather
-than twice a set (36)"""
-
-SAME_ENDS = tuple((s + SETS * w, t + SETS * u) for s in range(SETS) for w in (0, 1)
-                  for t in range(SETS) for u in (0, 1) if (t, u) > (s, w) and END_KEYS[s][w] == END_KEYS[t][u])
-"""pairs of indices into ``start + end`` (12,) that :data:`END_KEYS` holds
-equal: :func:`integrate_eights` leaves springs whose ends differ from that
-to the loops"""
+than twice a set (36), and the step takes the point's own from them;
+:func:`integrate_eights` leaves any other stencil to the loops"""
 
 RSQRT14 = has_compress()
 """whether the inverse length is AVX-512's estimate refined twice (see
@@ -312,11 +307,10 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
         return first  # not a range or buffer the calls can read inside: the loops take it all
     ends = (start[0], start[1], start[2], start[3], start[4], start[5],
             end[0], end[1], end[2], end[3], end[4], end[5])
-    if start[0] != 0:
-        return first  # not a grid's stencil: the step takes set 0's start for the point
-    for i, j in SAME_ENDS:
-        if ends[i] != ends[j]:
-            return first  # not a grid's stencil: the calls load one end for both
+    for s in range(SETS):
+        (r0, c0), (r1, c1) = END_KEYS[s]
+        if start[s] != r0 * springs.cols + c0 or end[s] != r1 * springs.cols + c1:
+            return first  # not a grid's stencil: the calls load one end for every set that shares it
     ks = (k[0], k[1], k[2], k[3], k[4], k[5])
     off = (_off(k[0]), _off(k[1]), _off(k[2]), _off(k[3]), _off(k[4]), _off(k[5]))
     motion = (g[0], g[1], g[2], knobs.keep, knobs.dt2)
