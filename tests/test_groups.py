@@ -29,12 +29,13 @@ from numba.core.dispatcher import Dispatcher
 import clothsim
 import clothsim.solver
 from clothsim.solver.groups import Control, Knobs, MeshKnobs, Points, Scratch
+from clothsim.solver.mesh_pulls import MeshPulls
 from clothsim.solver.meshsprings import MeshSprings
 from clothsim.solver.selfcollide.buffers import NeighbourList
 from clothsim.solver.springs import GridSprings
 
 GROUPS = {"springs": GridSprings, "knobs": Knobs, "points": Points, "control": Control, "scratch": Scratch,
-          "lists": NeighbourList, "mesh_springs": MeshSprings, "mesh_knobs": MeshKnobs}
+          "lists": NeighbourList, "mesh_springs": MeshSprings, "mesh_knobs": MeshKnobs, "mesh_pulls": MeshPulls}
 """the parameter name each group goes by in every kernel that takes it"""
 
 MAX_PARAMETERS = 10
@@ -49,6 +50,7 @@ LONG_SIGNATURES = {
     "query_points": 11,  # the cell grid and the build's scalars beside the list
     "_first_crossing": 12,  # inlined into the mesh kernels: the segment's ends one coordinate at a time
     "_hit": 11,  # inlined into _first_crossing: the segment and its slack as scalars, no array per point
+    "_advance_mesh": 11,  # the general path's springs in two groups, lists and slots: nested, no prange takes them
 }
 """kernels that take more than MAX_PARAMETERS parameters today, and how many"""
 

@@ -197,7 +197,7 @@ def test_provot_keeps_springs_near_110_percent(path):
 def stretch_without_provot(sim: Simulation) -> float:
     """largest stretch over one second of the same run with the Provot pass removed:
     the solver's own Verlet step (all spring kinds on, as in pinned2) and nothing else"""
-    from clothsim.solver import meshsprings
+    from clothsim.solver.mesh_pulls import pull_step, refresh_constants, rows_buffer, to_rows
     from clothsim.solver.springs import force_buffer, integrate
 
     solver, n = sim.solver, sim.model.num_points
@@ -205,13 +205,15 @@ def stretch_without_provot(sim: Simulation) -> float:
     P = np.ascontiguousarray(sim.positions.T)
     L = np.ascontiguousarray(sim.state.last_positions.T)
     mesh = solver.path == "mesh"
-    F = np.zeros((3, n)) if mesh else force_buffer(solver.springs, n)
+    F = rows_buffer(n) if mesh else force_buffer(solver.springs, n)
+    if mesh:
+        refresh_constants(solver.pulls, knobs.k_over_m)
     worst = 0.0
     for step in range(90 * 30):
         if mesh:
-            meshsprings.mesh_gravity(knobs, F, 0, n)
-            meshsprings.mesh_spring_forces(P, knobs, solver.springs, F, 0, sim.model.num_springs)
-            meshsprings.mesh_verlet(P, L, solver.points.free, knobs, F, 0, n)
+            to_rows(P, F, 0, n)
+            pull_step(P, F, L, solver.points.free, knobs, solver.pulls, 0, (n + 7) // 8)
+            P, L = L, P
         else:
             integrate(P, L, solver.points.free, knobs, solver.springs, F, 0, n, 0)
         if step % 30 == 29:

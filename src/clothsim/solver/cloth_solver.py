@@ -11,6 +11,7 @@ from ..state import State
 from . import prewarm
 from .colliders import KINDS
 from .groups import Control, Knobs, MeshKnobs, Points, Scratch
+from .mesh_pulls import build_mesh_pulls, rows_buffer
 from .meshsprings import build_mesh_springs
 from .meshstep import advance_mesh, advance_mesh_parallel
 from .selfcollide import NeighbourList, near_stencil, skin_factor
@@ -115,8 +116,9 @@ class ClothSolver:
         if first is not None and not self.is_compiled(*first):
             prewarm.start(self.variant(*first))
         self.springs = build_mesh_springs(model, self.parts)
+        self.pulls = build_mesh_pulls(model)
         self._points(max(model.size, 1e-9))
-        self._forces = np.zeros((3, n))
+        self._forces = rows_buffer(n)
         self._wind = np.zeros((3, n))
         starts = [c.start for c in model.cloths] + [n]
         reach = 2.0 * self.points.thickness
@@ -176,7 +178,8 @@ class ClothSolver:
     def step(self, state: State, control: Control, params: Params, substeps: int) -> float:
         """Advance ``state`` by ``substeps`` substeps of ``params.dt`` in place; returns the
         largest squared distance of a point from the start [m²] (inf when not finite)."""
-        far2, pairs = self._advance(state.positions, state.last_positions, self.points, self.springs,
+        springs = (self.springs,) if self.path == "grid" else (self.springs, self.pulls)
+        far2, pairs = self._advance(state.positions, state.last_positions, self.points, *springs,
                                     self.knobs(params), control, self.lists, self.lists.pairs, self.scratch,
                                     substeps)
         self.lists = self.lists._replace(pairs=pairs)

@@ -134,7 +134,8 @@ class Scratch(NamedTuple):
     """last positions as coordinate planes [m], float64 (3, N)"""
     F: np.ndarray
     """the grid path's spring forces of :func:`~.springs.integrate`, (6, 3, pad + N);
-    the general path's accelerations of the points, (3, N)"""
+    the general path's positions as rows (x, y, z, 0), (N, 4), that its springs'
+    pass reads the far ends from (:func:`~.mesh_pulls.to_rows`)"""
     masks: np.ndarray
     """each part's Provot bits, uint64 (parts, 2, words): see :func:`~.provot.provot`"""
     Q: np.ndarray

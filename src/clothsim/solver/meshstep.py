@@ -2,39 +2,45 @@
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit, prange
 
 from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
 from .wind import blow
-from .meshsprings import mesh_gravity, mesh_provot, mesh_spring_forces, mesh_verlet
+from .mesh_pulls import pull_step, refresh_constants, to_rows
+from .meshsprings import mesh_provot
 from .selfcollide import self_collide
+from .pull_lanes import LANES
 from .shared import part_range
 from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _from_planes, _hold, _renamed, _to_planes
 
 
-def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, control, lists, pairs, scratch,
-                  substeps):
+def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, mesh_knobs, control, lists, pairs,
+                  scratch, substeps):
     """Run ``substeps`` substeps on ``positions``/``last_positions`` (N, 3) [m] in place,
     for a model of any cloths: the general path's twin of :func:`~.step._advance`,
-    with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`,
-    ``mesh_knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (3, N) the
-    points' accelerations.
+    with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`
+    and ``mesh_pulls`` a :class:`~.mesh_pulls.MeshPulls` (the springs as lists
+    for Provot and as each point's slots for the forces: a group inside
+    another does not reach a prange body), ``mesh_knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (N, 4) the
+    positions as rows, which the springs' pass reads the far ends from.
 
     Returns (largest squared distance of a point from ``points.center``, inf
     when not finite; the neighbour list's pairs array).
 
     Order per substep as in :func:`~.step._advance`: forces and Verlet, the
     handles and the wind, self-collision, the colliders, the Provot pass and
-    the settle pass. Cut into the parts
-    of ``mesh_springs.part_start``: the forces by ranges of springs, the Verlet
-    step, the colliders and each part's own Provot springs by ranges of
-    points, the springs across parts after the parts, on one thread. Compiled twice, as
+    the settle pass. The forces and Verlet step write the new positions into
+    the last positions' planes, and the two planes then swap names: P holds
+    the new positions, L those they came from. Cut into parts: the forces
+    and Verlet step by ranges of eights of points, the colliders by ranges
+    of points, Provot by the parts of ``mesh_springs.part_start``, each
+    part's own springs at once, the springs across parts after the parts,
+    on one thread. Compiled twice, as
     :func:`advance_mesh` (parts one after another) and
     :func:`advance_mesh_parallel` (parts on threads).
     """
-    P, L, A = scratch.P, scratch.L, scratch.F
+    P, L, R = scratch.P, scratch.L, scratch.F
     free, center = points.free, points.center
     handle, handle_pos = control.handle, control.handle_pos
     enabled, simulation_steps = mesh_knobs.enabled, mesh_knobs.simulation_steps
@@ -44,17 +50,19 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_knobs, c
     _to_planes(positions, P)
     _to_planes(last_positions, L)
     n = P.shape[1]
-    mesh_gravity(mesh_knobs, A, np.int64(0), n)  # a variable, not a literal: see docs/architecture.md
+    eights = (n + LANES - 1) // LANES
+    refresh_constants(mesh_pulls, mesh_knobs.k_over_m)
     W, Q = scratch.W, scratch.Q
     settling = has_settle(control)
     copying = settle_needs_q(control)
     for s in range(substeps):
         for t in prange(parts):
-            mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[t], part_start[t + 1])
-        mesh_spring_forces(P, mesh_knobs, mesh_springs, A, part_start[parts], part_start[parts + 1])
-        for t in prange(parts):
             lo, hi = part_range(n, parts, t)
-            mesh_verlet(P, L, free, mesh_knobs, A, lo, hi)
+            to_rows(P, R, lo, hi)
+        for t in prange(parts):
+            lo, hi = part_range(eights, parts, t)
+            pull_step(P, R, L, free, mesh_knobs, mesh_pulls, lo, hi)
+        P, L = L, P
         if handle >= 0:
             _hold(P, handle, handle_pos)
         place_handles(P, control.moved_points, control.moved_to, s)

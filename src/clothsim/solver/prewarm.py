@@ -153,25 +153,28 @@ def calls(variant: str) -> list:
 def _mesh_calls(rest, pinned, P, L, points) -> list:
     """The general path's own kernels, in the reverse of the order its substep types
     them, with groups of the types a solver of that path makes (see
-    :meth:`~.cloth_solver.ClothSolver._mesh_knobs`, :func:`~.meshsprings.build_mesh_springs`)."""
+    :meth:`~.cloth_solver.ClothSolver._mesh_knobs`, :func:`~.meshsprings.build_mesh_springs`,
+    :func:`~.mesh_pulls.build_mesh_pulls`)."""
     from ..model import build_model
     from ..scene import ClothSpec
     from .groups import MeshKnobs
-    from .meshsprings import build_mesh_springs, mesh_gravity, mesh_provot, mesh_spring_forces, mesh_verlet
+    from .mesh_pulls import build_mesh_pulls, pull_step, refresh_constants, rows_buffer, to_rows
+    from .meshsprings import build_mesh_springs, mesh_provot
 
     spec = ClothSpec(width=0.3, height=0.3, num_width_points=4, num_height_points=4, thickness=0.01,
                      orientation=0)
-    springs = build_mesh_springs(build_model(spec), 1)
+    model = build_model(spec)
+    springs, pulls = build_mesh_springs(model, 1), build_mesh_pulls(model)
     n = P.shape[1]
     knobs = MeshKnobs(gravity=np.zeros(3), k_over_m=np.ones((1, 3)).ravel(),
                       enabled=np.ones((1, 3), dtype=bool).ravel(), keep=np.repeat(np.ones(1), n), dt2=1e-6,
                       simulation_steps=1, self_collision=True, inv_mass=np.ones(n))
-    A = np.zeros((3, n))
+    R = rows_buffer(n)
     zero, count, s = np.int64(0), np.int64(n), np.int64(len(springs.a))
     return [(mesh_provot, (P, springs, knobs.enabled, zero, s)),
-            (mesh_verlet, (P, L, points.free, knobs, A, zero, count)),
-            (mesh_spring_forces, (P, knobs, springs, A, zero, s)),
-            (mesh_gravity, (knobs, A, zero, count))]
+            (pull_step, (P, R, L, points.free, knobs, pulls, zero, zero)),
+            (to_rows, (P, R, zero, count)),
+            (refresh_constants, (pulls, knobs.k_over_m))]
 
 
 def _world(features: set[str], n: int):
