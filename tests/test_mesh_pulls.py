@@ -7,7 +7,9 @@ as the course code adds each spring to both its ends, on any springs among
 any points (a last eight cut short, points of many springs and of none,
 pins, two cloths with constants of their own, kinds switched off); to
 itself when the eights are cut into parts and taken in any order; and it
-must follow the live constants (:func:`refresh_constants`).
+must follow the live constants (:func:`refresh_constants`). Provot's pass
+(:func:`mesh_provot`), which skips eights of springs by a vector test on
+the same rows, must give the bits of the pass that takes every spring.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from hypothesis import strategies as st
 
 from clothsim.solver.groups import MeshKnobs
 from clothsim.solver.mesh_pulls import LANES, build_mesh_pulls, pull_step, refresh_constants, rows_buffer, to_rows
+from clothsim.solver.meshsprings import build_mesh_springs, mesh_provot
 
 
 def _model(n, a, b, rest, kind, starts):
@@ -159,3 +162,32 @@ def test_slots_of_another_model_leave_the_points_alone():
     pull_step(P, rows_buffer(8), L, np.ones(16), knobs, pulls, 0, 2)  # rows for half the points
     pull_step(P, rows_buffer(16), L, np.ones(16), knobs, pulls, 0, 3)  # one eight too many
     assert np.all(L == 7.0)
+
+
+@settings(max_examples=80, deadline=None)
+@given(_cases(), st.integers(1, 3))
+def test_provots_eights_change_nothing(case, parts):
+    """mesh_provot's vector test on the rows only skips eights of springs the pass
+    would leave alone: the same bits as the pass one spring after another (given
+    rows of the wrong shape), on states where every spring is near its limit
+    (about half over it), and R left as the rows of the result"""
+    model, P, L, free, knobs = case
+    n = P.shape[1]
+    rng = np.random.default_rng(n)
+    stretched = P * rng.uniform(0.9, 1.25, P.shape)
+    # rest lengths that leave every spring within 1.5% of its limit, either side
+    length = np.linalg.norm(stretched[:, model.spring_a] - stretched[:, model.spring_b], axis=0)
+    model.spring_rest = (length / (1.1 * rng.uniform(0.985, 1.015, length.shape))).astype(np.float32)
+    model.pinned = free == 0.0
+    springs = build_mesh_springs(model, parts)
+    out = []
+    for R in (rows_buffer(n), np.zeros((n, 3))):
+        p = stretched.copy()
+        if R.shape[1] == 4:
+            to_rows(p, R, 0, n)
+        for t in range(parts + 1):
+            mesh_provot(p, R, springs, knobs.enabled, springs.part_start[t], springs.part_start[t + 1])
+        out.append(p)
+        if R.shape[1] == 4:
+            assert np.array_equal(R[:, :3], p.T)
+    assert np.array_equal(out[0].view(np.int64), out[1].view(np.int64))

@@ -74,8 +74,9 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
             collide(P, L, free, control, lo, hi, s)
             if copying:
                 _copy_range(P, Q, lo, hi)
-            mesh_provot(P, mesh_springs, enabled, part_start[t], part_start[t + 1])
-        mesh_provot(P, mesh_springs, enabled, part_start[parts], part_start[parts + 1])
+            to_rows(P, R, lo, hi)  # a part's own springs join its own points
+            mesh_provot(P, R, mesh_springs, enabled, part_start[t], part_start[t + 1])
+        mesh_provot(P, R, mesh_springs, enabled, part_start[parts], part_start[parts + 1])
         if settling:
             for t in prange(parts):
                 lo, hi = part_range(n, parts, t)

@@ -171,7 +171,7 @@ def _mesh_calls(rest, pinned, P, L, points) -> list:
                       simulation_steps=1, self_collision=True, inv_mass=np.ones(n))
     R = rows_buffer(n)
     zero, count, s = np.int64(0), np.int64(n), np.int64(len(springs.a))
-    return [(mesh_provot, (P, springs, knobs.enabled, zero, s)),
+    return [(mesh_provot, (P, R, springs, knobs.enabled, zero, s)),
             (pull_step, (P, R, L, points.free, knobs, pulls, zero, zero)),
             (to_rows, (P, R, zero, count)),
             (refresh_constants, (pulls, knobs.k_over_m))]

@@ -15,6 +15,10 @@ coordinate plane) took nearly twice as long on Zen 4, whether LLVM wrote
 it or eight scalar loads stood for it (docs/performance.md, 'The general
 path's springs as pulls').
 
+Provot's pass over the spring lists (:func:`.meshsprings.mesh_provot`)
+tests eight springs at once on the same rows (:func:`over_lanes`), and
+takes one by one only the eights where one may be over its limit.
+
 Each spring is computed at both its ends, by the same arithmetic on the
 ends' difference and its negation, so the two pulls are equal and opposite
 to the bit. No point's sum depends on another lane or another call, so a
@@ -32,9 +36,10 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from .colliders.lanes import LANES
+from .simd import _vector_at
 from .spring_lanes import _over_length, _Vector
 
-__all__ = ["LANES", "pull_lanes"]
+__all__ = ["LANES", "over_lanes", "pull_lanes"]
 
 I64 = ir.IntType(64)
 I32 = ir.IntType(32)
@@ -163,3 +168,35 @@ def _vector_at_rows(context, b, array_type, array, row, vec):
     a = context.make_array(array_type)(context, b, array)
     ptr = cgutils.get_item_pointer(context, b, array_type, a, [row, ir.Constant(row.type, 0)], wraparound=False)
     return b.bitcast(ptr, vec.as_pointer())
+
+
+@intrinsic
+def over_lanes(typingctx, R, a, b, limit2, at):
+    """Whether any of the springs ``at:at + LANES`` joining points ``a`` to ``b``
+    (int32 (S,)) of the rows R (N, 4) [m] may be longer than its limit, its
+    squared length over ``limit2`` (float64 (S,)) [m²] less a part in 1e12:
+    a test that never misses a spring the exact one takes, for Provot's pass
+    to skip the eight where it is false. Nothing is bounds-checked: the
+    caller keeps ``at + LANES`` inside the springs and their ends inside R."""
+    if not (_plane(R, 2) and _plane(a, 1, types.int32) and _plane(b, 1, types.int32) and _plane(limit2, 1)):
+        raise TypingError("over_lanes takes C float64 (N, 4), int32 (S,), int32 (S,), float64 (S,) arrays")
+    sig = types.boolean(R, a, b, limit2, at)
+
+    def codegen(context, b_, signature, args):
+        R_t, a_t, b_t, limit_t, at_t = signature.args
+        R_v, a_v, b_v, limit_v, at_v = args
+        intp = context.get_value_type(types.intp)
+        at = context.cast(b_, at_v, at_t, types.intp)
+        v = _Rows(context, b_, ir.Constant(ir.VectorType(ir.IntType(1), LANES), [1] * LANES))
+        ivec = ir.VectorType(I32, LANES)
+        R_a = context.make_array(R_t)(context, b_, R_v)
+        rows_ptr = cgutils.get_item_pointer(context, b_, R_t, R_a, [ir.Constant(intp, 0), ir.Constant(intp, 0)],
+                                            wraparound=False)
+        ends = [v.far_ends(rows_ptr, b_.load(_vector_at(context, b_, t, value, [at], ivec), align=4))
+                for t, value in ((a_t, a_v), (b_t, b_v))]
+        d = [v.sub(q, p) for p, q in zip(*ends)]
+        l2 = v.add(v.add(v.mul(d[0], d[0]), v.mul(d[1], d[1])), v.mul(d[2], d[2]))
+        limit = v.mul(v.load(limit_t, limit_v, at), v.constant(1.0 - 1e-12))
+        return v.any(v.greater(l2, limit))
+
+    return sig, codegen
