@@ -144,9 +144,10 @@ def pull_step(P, R, L, free, mesh_knobs, mesh_pulls, first, stop):
     g, keep = mesh_knobs.gravity, mesh_knobs.keep
     n = P.shape[1]
     chunks = (n + LANES - 1) // LANES
-    if mesh_pulls.points != n or chunk_start.shape[0] != chunks + 1 or L.shape[1] < n or R.shape[0] < n \
-            or R.shape[1] != 4 or free.shape[0] < n or keep.shape[0] < n or other.shape[1] != LANES or k_rest.shape != other.shape or k.shape != other.shape \
-            or chunk_start[chunks] > other.shape[0] or first < 0 or stop > chunks:
+    if mesh_pulls.points != n or chunk_start.shape[0] != chunks + 1 or chunk_start[chunks] > other.shape[0] \
+            or other.shape[1] != LANES or k.shape != other.shape or k_rest.shape != other.shape \
+            or L.shape[1] < n or R.shape[0] < n or R.shape[1] != 4 or free.shape[0] < n or keep.shape[0] < n \
+            or first < 0 or stop > chunks:
         return
     motion = (g[0], g[1], g[2], mesh_knobs.dt2)
     for e in range(first, stop):

@@ -6,13 +6,13 @@ from numba import njit, prange
 
 from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
-from .wind import blow
 from .mesh_pulls import pull_step, refresh_constants, to_rows
 from .meshsprings import mesh_provot
-from .selfcollide import self_collide
 from .pull_lanes import LANES
+from .selfcollide import self_collide
 from .shared import part_range
 from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _from_planes, _hold, _renamed, _to_planes
+from .wind import blow
 
 
 def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, mesh_knobs, control, lists, pairs,
@@ -22,8 +22,9 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
     with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`
     and ``mesh_pulls`` a :class:`~.mesh_pulls.MeshPulls` (the springs as lists
     for Provot and as each point's slots for the forces: a group inside
-    another does not reach a prange body), ``mesh_knobs`` a :class:`~.groups.MeshKnobs` and ``scratch.F`` (N, 4) the
-    positions as rows, which the springs' pass reads the far ends from.
+    another does not reach a prange body), ``mesh_knobs`` a
+    :class:`~.groups.MeshKnobs` and ``scratch.F`` (N, 4) the positions as
+    rows, which the springs' pass and Provot's test read the ends from.
 
     Returns (largest squared distance of a point from ``points.center``, inf
     when not finite; the neighbour list's pairs array).
