@@ -25,6 +25,12 @@ points or pairs) and nanoseconds per item.
   copy to single precision made beside it, the cell sort of a build, and a
   whole build (the substep of self-collision that makes a new list).
 
+- the general path (spring lists, ``meshstep.py``) on the irregular mesh of
+  ``bench_sim.py --mesh-only`` (10,000 points) in ``sphere`` after 10 frames,
+  one thread: the copy of the positions as rows, the springs with Verlet
+  as each point's pulls, and the Provot pass (with its copy of the rows)
+  as the substep calls it.
+
 The stages are wrapped here the way the substep calls them (``prange`` over
 the parts), compiled apart from the solver's own frame loop.
 
@@ -194,6 +200,42 @@ def spring_stages(rounds: int, info: dict) -> None:
         line(stage, "pinned2", "50x50", 1, us, slots, "springs", {**info, "frame": 90, "springs_over_limit": over})
 
 
+def general_stages(rounds: int, info: dict) -> None:
+    import tempfile
+
+    from bench_sim import mesh_scene
+
+    from clothsim.procedural import delaunay_square, write_obj
+    from clothsim.solver.mesh_pulls import pull_step, to_rows
+    from clothsim.solver.meshsprings import mesh_provot
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        obj = write_obj(folder / "irregular.obj", delaunay_square(count=10000, side=1.0, spacing=0.007, seed=20))
+        sim = Simulation.from_file(mesh_scene("sphere", obj, folder), threads=1)
+    for _ in range(10):
+        sim.step()
+    copy = Copy(sim)
+    sol, s = copy.solver, copy.scratch
+    knobs, springs, pulls, free = sol.knobs(sim.params), sol.springs, sol.pulls, sol.points.free
+    n, count = s.P.shape[1], len(springs.a)
+    eights = -(-n // 8)
+
+    def provot_pass():
+        to_rows(s.P, s.F, 0, n)
+        mesh_provot(s.P, s.F, springs, knobs.enabled, 0, count)
+
+    calls = {"general: rows": (lambda: to_rows(s.P, s.F, 0, n), n, "points"),
+             "general: springs and Verlet": (lambda: pull_step(s.P, s.F, s.L, free, knobs, pulls, 0, eights),
+                                             count, "springs"),
+             "general: Provot with its rows": (provot_pass, count, "springs")}
+    to_rows(s.P, s.F, 0, n)
+    for stage, (call, work, unit) in calls.items():
+        us = best_us(call, copy, 200, rounds)
+        line(stage, "sphere", "irregular mesh", 1, us, work, unit,
+             {**info, "slots_per_point": round(pulls.other.size / n, 2)})
+
+
 def gap2_all(P, springs, t):
     """the squared lengths of set t's springs, (count,)"""
     a, b, c = springs.start[t], springs.end[t], springs.count[t]
@@ -274,6 +316,7 @@ def main() -> None:
         ap.error(f"--frame: expected a number of frames of 1 or more, got {args.frame}")
     info = machine()
     spring_stages(args.rounds, info)
+    general_stages(args.rounds, info)
     piled_stages(args.size, args.rounds, info, args.frame)
 
 
