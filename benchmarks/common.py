@@ -40,8 +40,9 @@ def machine() -> dict:
     # "AMD EPYC" machines here differ in AVX-512, and the springs in how they
     # take a length's inverse (docs/performance.md); vector_bits: how wide LLVM
     # made the loops (clothsim.vector_width; 256 also on a CPU without AVX-512,
-    # whose widest vectors those are); the grid's eights, where they run, take
-    # AVX-512's estimate refined twice, the loops the divide or the estimate
+    # whose widest vectors those are); the grid's eights, where they run, and
+    # the general path's pulls take AVX-512's estimate refined twice, the loops
+    # the divide or the estimate
     return {"cpu": cpu, "avx512_code": has_compress(), "vector_bits": 512 if widen() else 256,
             "inverse_length": f"{inverse}, eights rsqrt14" if RSQRT14 else inverse,
             "python": platform.python_version(), "numpy": numpy.__version__,
