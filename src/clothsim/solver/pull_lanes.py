@@ -100,14 +100,16 @@ class _Rows(_Vector):
 def pull_lanes(typingctx, P, R, L, free, keep, other, k, k_rest, rows, at, count, motion):
     """Points ``at:at + count`` (``count`` ≤ LANES) of the (3, N) planes P take
     their Verlet step into L: ``x' = x + free (keep (x - L) + a dt²)``, with
-    ``a = g + sum over rows r of rows[0]:rows[1] of (k - k_rest / |d|) d``,
-    ``d = R[other[r], :3] - x``, lane by lane, ``R`` (N, 4) the positions
-    as rows (P's, a copy the far ends are read from, a load each): ``other`` int32 (R, LANES) the
-    far ends, ``k`` [1/s²] and ``k_rest`` (k times the rest length) [m/s²] float64 (R, LANES); ``free`` and
-    ``keep`` float64 (N,); ``motion``: gravity (3) [m/s²], dt² [s²]. L then
-    holds the new positions, P is left as it was (a later call reads it).
-    Nothing is bounds-checked: the caller keeps ``rows`` inside the slots,
-    every ``other`` of them inside R, and ``at + count`` ≤ N. The lanes from
+    ``a = g + sum over rows r of rows[0]:rows[1] of (k - k_rest / |d|) d``
+    and ``d = R[other[r], :3] - x``, lane by lane.
+
+    ``R`` (N, 4): P's positions as rows, a load per far end; ``other`` int32
+    (R, LANES): the far ends; ``k`` [1/s²] and ``k_rest`` (k times the rest
+    length) [m/s²] float64 (R, LANES); ``free`` and ``keep`` float64 (N,);
+    ``motion``: gravity (3) [m/s²], dt² [s²]. L then holds the new
+    positions; P is left as it was (a later call reads it). Nothing is
+    bounds-checked: the caller keeps ``rows`` inside the slots, every
+    ``other`` of them inside R, and ``at + count`` ≤ N. The lanes from
     ``count`` on are neither read nor written."""
     if not (_plane(P, 2) and _plane(R, 2) and _plane(L, 2) and _plane(free, 1) and _plane(keep, 1) and _plane(k, 2)
             and _plane(k_rest, 2) and _plane(other, 2, types.int32)):
@@ -137,7 +139,7 @@ def pull_lanes(typingctx, P, R, L, free, keep, other, k, k_rest, rows, at, count
         sums = [cgutils.alloca_once_value(b, v.constant(0.0)) for _ in range(3)]
         ivec = ir.VectorType(I32, LANES)
         with cgutils.for_range_slice(b, first, stop, ir.Constant(intp, 1), inc=True) as (r, _):
-            ids = b.load(_vector_at_rows(context, b, other_t, other_v, r, ivec), align=4)
+            ids = b.load(_vector_at(context, b, other_t, other_v, [r, ir.Constant(intp, 0)], ivec), align=4)
             ks = v.load(k_t, k_v, r, ir.Constant(intp, 0))
             pull = v.load(kr_t, kr_v, r, ir.Constant(intp, 0))
             d = [v.sub(end, x[c]) for c, end in enumerate(v.far_ends(rows_ptr, ids))]
@@ -161,13 +163,6 @@ def _splat_int(b, value, intp):
     vec = ir.VectorType(intp, LANES)
     one = b.insert_element(ir.Constant(vec, ir.Undefined), value, ir.Constant(I32, 0))
     return b.shuffle_vector(one, ir.Constant(vec, ir.Undefined), ir.Constant(ir.VectorType(I32, LANES), [0] * LANES))
-
-
-def _vector_at_rows(context, b, array_type, array, row, vec):
-    """a pointer to ``vec`` at ``array[row, 0]``"""
-    a = context.make_array(array_type)(context, b, array)
-    ptr = cgutils.get_item_pointer(context, b, array_type, a, [row, ir.Constant(row.type, 0)], wraparound=False)
-    return b.bitcast(ptr, vec.as_pointer())
 
 
 @intrinsic
