@@ -36,7 +36,7 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from .colliders.lanes import LANES
-from .simd import _vector_at
+from .simd import _splat, _vector_at
 from .spring_lanes import _over_length, _Vector
 
 __all__ = ["LANES", "over_lanes", "pull_lanes"]
@@ -129,7 +129,7 @@ def pull_lanes(typingctx, P, R, L, free, keep, other, k, k_rest, rows, at, count
         count = context.cast(b, count_v, count_t, types.intp)
         first, stop = (context.cast(b, r, rows_t.dtype, types.intp) for r in cgutils.unpack_tuple(b, rows_v, 2))
         lane_ids = ir.Constant(ir.VectorType(intp, LANES), list(range(LANES)))
-        valid = b.icmp_signed("<", lane_ids, _splat_int(b, count, intp))
+        valid = b.icmp_signed("<", lane_ids, _splat(b, count, ir.VectorType(intp, LANES)))
         v = _Rows(context, b, valid)
         g0, g1, g2, dt2 = (v.splat(x) for x in cgutils.unpack_tuple(b, motion_v, 4))
         x = [v.masked_load(P_t, P_v, c, at) for c in range(3)]
@@ -157,12 +157,6 @@ def pull_lanes(typingctx, P, R, L, free, keep, other, k, k_rest, rows, at, count
         return context.get_dummy_value()
 
     return sig, codegen
-
-
-def _splat_int(b, value, intp):
-    vec = ir.VectorType(intp, LANES)
-    one = b.insert_element(ir.Constant(vec, ir.Undefined), value, ir.Constant(I32, 0))
-    return b.shuffle_vector(one, ir.Constant(vec, ir.Undefined), ir.Constant(ir.VectorType(I32, LANES), [0] * LANES))
 
 
 @intrinsic
