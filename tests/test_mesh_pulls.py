@@ -19,10 +19,12 @@ from types import SimpleNamespace
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numba import njit
 
 from clothsim.solver.groups import MeshKnobs
 from clothsim.solver.mesh_pulls import LANES, build_mesh_pulls, pull_step, refresh_constants, rows_buffer, to_rows
 from clothsim.solver.meshsprings import build_mesh_springs, mesh_provot
+from clothsim.solver.pull_lanes import over_lanes
 
 
 def _model(n, a, b, rest, kind, starts):
@@ -191,3 +193,34 @@ def test_provots_eights_change_nothing(case, parts):
         if R.shape[1] == 4:
             assert np.array_equal(R[:, :3], p.T)
     assert np.array_equal(out[0].view(np.int64), out[1].view(np.int64))
+
+
+@njit
+def _over_each_eight(R, a, b, limit2):
+    out = np.zeros(len(a) // LANES, dtype=np.bool_)
+    for e in range(len(out)):
+        out[e] = over_lanes(R, a, b, limit2, e * LANES)
+    return out
+
+
+def test_provots_vector_test_pairs_each_spring_with_its_own_limit():
+    """over_lanes says, for each eight, whether a spring is longer than its own
+    limit (less a part in 1e12): springs of lengths over four orders of
+    magnitude, one in each eight over a limit half its squared length and the
+    rest under one twice theirs, so that a length taken in another lane than
+    its limit's, or a coordinate missed, changes some eights' answers; and a
+    spring at its limit to the bit is flagged (the test never misses one)"""
+    rng = np.random.default_rng(5)
+    n, eights = 300, 400
+    R = rows_buffer(n)
+    to_rows(rng.normal(size=(3, n)) * 10.0 ** rng.uniform(-2, 2, n), R, 0, n)
+    a = rng.integers(0, n, eights * LANES).astype(np.int32)
+    b = ((a + rng.integers(1, n, eights * LANES)) % n).astype(np.int32)  # never a itself
+    l2 = ((R[b, :3] - R[a, :3]) ** 2).sum(axis=1)
+    over = rng.random(eights * LANES) < 1.0 / LANES
+    limit2 = np.where(over, 0.5 * l2, 2.0 * l2)
+    expected = (l2 > limit2).reshape(eights, LANES).any(axis=1)
+    assert 0 < expected.sum() < eights
+    assert np.array_equal(_over_each_eight(R, a, b, limit2), expected)
+    at_limit = np.where(np.arange(eights * LANES) % LANES == 3, l2, 2.0 * l2)
+    assert _over_each_eight(R, a, b, at_limit).all()

@@ -168,10 +168,13 @@ def rows_buffer(n: int) -> np.ndarray:
 def to_rows(P, R, lo, hi):
     """Points ``lo:hi`` of the (3, N) planes P [m] copied into the rows of R (N, 4),
     whose fourth column is 0: the far ends :func:`pull_step` reads, a load
-    each."""
+    each. Written through the rows' flat view, whose stride LLVM knows: it
+    then turns eight points' planes into their rows in vector shuffles, where
+    ``R[q, c]`` (the row's stride read at run time) left one store a number."""
     x, y, z = P[0], P[1], P[2]
+    flat = R.reshape(-1)
     for q in range(lo, hi):
-        R[q, 0] = x[q]
-        R[q, 1] = y[q]
-        R[q, 2] = z[q]
-        R[q, 3] = 0.0
+        flat[4 * q] = x[q]
+        flat[4 * q + 1] = y[q]
+        flat[4 * q + 2] = z[q]
+        flat[4 * q + 3] = 0.0

@@ -35,7 +35,7 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from .colliders.lanes import LANES
+from .colliders.lanes import FAST, LANES
 from .simd import _splat, _vector_at
 from .spring_lanes import _over_length, _Vector
 
@@ -94,6 +94,35 @@ class _Rows(_Vector):
         odd = [pick(pairs[h], pairs[h + 1], [1, 9, 3, 11, 5, 13, 7, 15]) for h in (0, 2)]
         low, high = [0, 1, 4, 5, 8, 9, 12, 13], [2, 3, 6, 7, 10, 11, 14, 15]
         return pick(even[0], even[1], low), pick(odd[0], odd[1], low), pick(even[0], even[1], high)
+
+    def squared_lengths(self, rows_ptr, ids_a, ids_b):
+        """|R[b] - R[a]|² of the eight springs joining points ``ids_a`` to
+        ``ids_b`` (i32) of the (N, 4) rows at ``rows_ptr``, whose fourth column
+        is 0: each difference and its square taken on its 256-bit row, then
+        the rows' sums in ten shuffles, where the ends' coordinates transposed
+        first took twenty-two"""
+        b = self.builder
+        quad = ir.VectorType(ir.DoubleType(), 4)
+        base = b.bitcast(rows_ptr, quad.as_pointer())
+
+        def row(ids, j):
+            return b.load(b.gep(base, [b.sext(b.extract_element(ids, ir.Constant(I32, j)), I64)]), align=8)
+
+        def pick(a, c, lanes):
+            return b.shuffle_vector(a, c, ir.Constant(ir.VectorType(I32, len(lanes)), lanes))
+
+        # springs 1 and 2 (5 and 6) taken swapped: the sums below then come
+        # out in the springs' order
+        squares = []
+        for j in (0, 2, 1, 3, 4, 6, 5, 7):
+            d = b.fsub(row(ids_b, j), row(ids_a, j), flags=FAST)
+            squares.append(b.fmul(d, d, flags=FAST))
+        pairs = [pick(squares[j], squares[j + 1], list(range(8))) for j in range(0, LANES, 2)]
+        # each pair's x + y and z + 0 side by side, then the two halves added
+        halves = [self.add(pick(pairs[h], pairs[h + 1], [0, 8, 2, 10, 4, 12, 6, 14]),
+                           pick(pairs[h], pairs[h + 1], [1, 9, 3, 11, 5, 13, 7, 15])) for h in (0, 2)]
+        return self.add(pick(halves[0], halves[1], [0, 1, 4, 5, 8, 9, 12, 13]),
+                        pick(halves[0], halves[1], [2, 3, 6, 7, 10, 11, 14, 15]))
 
 
 @intrinsic
@@ -181,10 +210,8 @@ def over_lanes(typingctx, R, a, b, limit2, at):
         R_a = context.make_array(R_t)(context, b_, R_v)
         rows_ptr = cgutils.get_item_pointer(context, b_, R_t, R_a, [ir.Constant(intp, 0), ir.Constant(intp, 0)],
                                             wraparound=False)
-        ends = [v.far_ends(rows_ptr, b_.load(_vector_at(context, b_, t, value, [at], ivec), align=4))
-                for t, value in ((a_t, a_v), (b_t, b_v))]
-        d = [v.sub(q, p) for p, q in zip(*ends)]
-        l2 = v.add(v.add(v.mul(d[0], d[0]), v.mul(d[1], d[1])), v.mul(d[2], d[2]))
+        ids = [b_.load(_vector_at(context, b_, t, value, [at], ivec), align=4) for t, value in ((a_t, a_v), (b_t, b_v))]
+        l2 = v.squared_lengths(rows_ptr, *ids)
         limit = v.mul(v.load(limit_t, limit_v, at), v.constant(1.0 - 1e-12))
         return v.any(v.greater(l2, limit))
 
