@@ -23,7 +23,10 @@ points or pairs) and nanoseconds per item.
   on one thread and cut over numba's threads: the springs with Verlet, the
   Provot pass, self-collision between list builds, its drift test with the
   copy to single precision made beside it, the cell sort of a build, and a
-  whole build (the substep of self-collision that makes a new list).
+  whole build (the substep of self-collision that makes a new list); then,
+  on one thread, a build's three passes over the pairs it finds (``pairs``):
+  the cell sort with the query of every point's neighbours (``build_list``),
+  the pairs' slack labels, and the sort by slack.
 
 - the general path (spring lists, ``meshstep.py``) on the irregular mesh of
   ``bench_sim.py --mesh-only`` (10,000 points) in ``sphere`` after 10 frames,
@@ -54,6 +57,8 @@ from clothsim.solver.selfcollide.buffers import PAIRS, SKIN, VALID
 from clothsim.solver.selfcollide.collide import self_collide
 from clothsim.solver.selfcollide.drift import copy_and_level, drift_bound
 from clothsim.solver.selfcollide.hashgrid import sort_into_cells
+from clothsim.solver.selfcollide.listbuild import build_list
+from clothsim.solver.selfcollide.slack import SLACK_BUCKETS, label_pairs, sort_by_slack
 from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
 from clothsim.solver.springs import integrate, spring_forces, verlet_gather
 from clothsim.solver.step import _chunk_range, _to_planes
@@ -98,6 +103,18 @@ def _cells(P, radius, span, lists):
     """the cell sort into copy 0, on one thread: with threads, each part sorts
     into a copy of its own at the same time (GRID_COPIES)"""
     return sort_into_cells(P, radius, span, lists, 0)
+
+
+@njit
+def _labels(P, reach, pairs, count, labels, scale):
+    """a build's slack labels, on one thread"""
+    label_pairs(P, reach, pairs, 0, count, labels, scale)
+
+
+@njit
+def _slack_sort(pairs, labels, segments, meta):
+    """a build's sort by slack, on one thread (its result a new array, as in a build)"""
+    return sort_by_slack(pairs, labels, segments, meta, 1)
 
 
 WRAPPED = {parallel: [njit(parallel=parallel)(f) for f in (_springs, _provot, _self_collide, _drift)]
@@ -289,6 +306,26 @@ def piled_stages(size: int, rounds: int, info: dict, frame: int | None = None) -
             "cell sort of a build": (lambda s=s, points=points, lists=lists, reach=reach:
                                      _cells(s.P, 1.2 * reach, points.span, lists), 50, n, "points"),
             "self-collision with a build": (rebuild, 20, n, "points")})
+    # a build's passes over its pairs, on one thread, on the list of the one-thread copy
+    copy, calls = stages[1]
+    sol = copy.solver
+    lists, points, s = sol.lists, sol.points, copy.scratch
+    reach = 2.0 * points.thickness
+    radius = reach + 0.001 * lists.meta[SKIN] * reach
+    found = np.empty((2, 40 * s.P.shape[1] + 64), dtype=np.int32)
+    listed = build_list(s.P, points.rest, reach, radius, points.span, lists, found)
+    if 0 <= listed <= found.shape[1]:
+        labels = np.empty(found.shape[1], dtype=np.int8)
+        scale = (SLACK_BUCKETS - 1) / (radius * radius - reach * reach)
+        segments = np.array([[0, listed]], dtype=np.int64)
+        meta = lists.meta.copy()
+        _labels(s.P, reach, found, listed, labels, scale)
+        calls.update({
+            "build: cell sort and query": (lambda s=s, points=points, lists=lists, found=found:
+                                           build_list(s.P, points.rest, reach, radius, points.span, lists, found),
+                                           20, listed, "pairs"),
+            "build: labels": (lambda s=s: _labels(s.P, reach, found, listed, labels, scale), 50, listed, "pairs"),
+            "build: slack sort": (lambda: _slack_sort(found, labels, segments, meta), 50, listed, "pairs")})
     # rounds interleave the thread counts, so a slow spell of the machine falls on both
     best: dict = {}
     for _ in range(rounds):
