@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 import pytest
+from numba import njit
 
 from clothsim.model import build_model
 from clothsim.scene import ClothSpec
@@ -23,7 +24,7 @@ from clothsim.solver.selfcollide.drift import drift_bound, levels
 from clothsim.solver.selfcollide.hashgrid import bounds
 from clothsim.solver.selfcollide.listbuild import COMPRESS, NARROW, build_list
 from clothsim.solver.selfcollide.nearstencil import COARSE_SKIN, NEAR_LEVELS, SKIN_FACTOR, grid_metric, skin_factor
-from clothsim.solver.selfcollide.slack import checked_pairs
+from clothsim.solver.selfcollide.slack import PAD_ROWS, SORT_LANES, _count_runs, checked_pairs
 from clothsim.solver.shared import BLOCK
 from clothsim.solver.simd import FORCE_PORTABLE, has_compress
 from clothsim.solver.springs import (AHEAD_STEP, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
@@ -853,6 +854,30 @@ def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
     x, _ = collide_in_place(P, m.rest_positions, free, m.thickness, 10 ** 9, x)  # the list holds
     assert x.rebuilds == 1
     np.testing.assert_array_equal(x.pairs[:, :listed], pairs)
+
+
+@njit
+def _run_counts(labels, lo, hi):
+    at = np.zeros((SORT_LANES + PAD_ROWS, SLACK_BUCKETS), dtype=np.int64)
+    _count_runs(labels, lo, hi, at)
+    return at
+
+
+@pytest.mark.parametrize("length", [0, 5, 63, 64, 8 * 64 - 1, 8 * 64 + 9, 5473, 74299])
+def test_the_slack_sort_counts_each_runs_labels(length):
+    """the sort's count of each label in each of its SORT_LANES runs (the last
+    taking what is left over), 64 labels at a time and the last few one by
+    one, is numpy's, from an offset that is no multiple of 64; the rows of
+    padding stay 0"""
+    rng = np.random.default_rng(length)
+    labels = rng.integers(0, SLACK_BUCKETS, length + 40).astype(np.int8)
+    lo, hi = 21, 21 + length
+    size = length // SORT_LANES
+    expected = np.zeros((SORT_LANES + PAD_ROWS, SLACK_BUCKETS), dtype=np.int64)
+    for r in range(SORT_LANES):
+        stop = lo + (r + 1) * size if r < SORT_LANES - 1 else hi
+        expected[r] = np.bincount(labels[lo + r * size:stop], minlength=SLACK_BUCKETS)
+    np.testing.assert_array_equal(_run_counts(labels, lo, hi), expected)
 
 
 def test_a_substep_checks_the_slack_buckets_its_drift_bound_reaches():

@@ -299,3 +299,34 @@ def flagged_lanes(typingctx, flags, at, dst, end):
         return builder.zext(count, i64)
 
     return sig, codegen
+
+
+BYTES64 = 64
+"""the labels :func:`count_equal` compares at once: one 512-bit vector of bytes"""
+
+
+@intrinsic
+def count_equal(typingctx, labels, at, value):
+    """How many of ``labels[at:at + BYTES64]`` (int8 (N,), contiguous) equal
+    ``value`` (int64), as an int64: one vector comparison of the 64 bytes and
+    a count of its bits. A loop that adds one per equal label adds into a
+    64-bit count (numba widens every integer sum), eight labels a vector.
+    Nothing is bounds-checked. Portable: LLVM lowers it for any target."""
+    if not (isinstance(labels, types.Array) and labels.ndim == 1 and labels.layout == "C"
+            and labels.dtype == types.int8):
+        raise TypingError("count_equal reads a contiguous int8 (N,) array")
+    sig = types.int64(labels, at, value)
+
+    def codegen(context, builder, signature, args):
+        labels_v, at_v, value_v = args
+        labels_t, at_t, value_t = signature.args
+        at_v = context.cast(builder, at_v, at_t, types.intp)
+        i8 = ir.IntType(8)
+        bytes_ = ir.VectorType(i8, BYTES64)
+        read = builder.load(_vector_at(context, builder, labels_t, labels_v, [at_v], bytes_), align=1)
+        value = builder.trunc(context.cast(builder, value_v, value_t, types.int64), i8)
+        equal = builder.icmp_signed("==", read, _splat(builder, value, bytes_))
+        count = builder.ctpop(builder.bitcast(equal, ir.IntType(BYTES64)))
+        return builder.zext(count, ir.IntType(64))
+
+    return sig, codegen
