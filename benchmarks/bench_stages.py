@@ -26,7 +26,8 @@ points or pairs) and nanoseconds per item.
   whole build (the substep of self-collision that makes a new list); then,
   on one thread, a build's three passes over the pairs it finds (``pairs``):
   the cell sort with the query of every point's neighbours (``build_list``),
-  the pairs' slack labels, and the sort by slack.
+  the pairs' slack labels (with their copy of the positions as rows), and
+  the sort by slack.
 
 - the general path (spring lists, ``meshstep.py``) on the irregular mesh of
   ``bench_sim.py --mesh-only`` (10,000 points) in ``sphere`` after 10 frames,
@@ -52,6 +53,7 @@ from common import emit, machine
 from numba import njit, prange
 
 from clothsim import Simulation
+from clothsim.solver.mesh_pulls import rows_buffer, to_rows
 from clothsim.solver.provot import provot
 from clothsim.solver.selfcollide.buffers import PAIRS, SKIN, VALID
 from clothsim.solver.selfcollide.collide import self_collide
@@ -106,9 +108,10 @@ def _cells(P, radius, span, lists):
 
 
 @njit
-def _labels(P, reach, pairs, count, labels, scale):
-    """a build's slack labels, on one thread"""
-    label_pairs(P, reach, pairs, 0, count, labels, scale)
+def _labels(P, R, reach, pairs, count, labels, scale):
+    """a build's slack labels with the copy of the positions as rows they read, on one thread"""
+    to_rows(P, R, 0, P.shape[1])
+    label_pairs(R, reach, pairs, 0, count, labels, scale)
 
 
 @njit
@@ -223,7 +226,7 @@ def general_stages(rounds: int, info: dict) -> None:
     from bench_sim import mesh_scene
 
     from clothsim.procedural import delaunay_square, write_obj
-    from clothsim.solver.mesh_pulls import pull_step, to_rows
+    from clothsim.solver.mesh_pulls import pull_step
     from clothsim.solver.meshsprings import mesh_provot
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -319,12 +322,14 @@ def piled_stages(size: int, rounds: int, info: dict, frame: int | None = None) -
         scale = (SLACK_BUCKETS - 1) / (radius * radius - reach * reach)
         segments = np.array([[0, listed]], dtype=np.int64)
         meta = lists.meta.copy()
-        _labels(s.P, reach, found, listed, labels, scale)
+        rows = rows_buffer(s.P.shape[1])
+        _labels(s.P, rows, reach, found, listed, labels, scale)
         calls.update({
             "build: cell sort and query": (lambda s=s, points=points, lists=lists, found=found:
                                            build_list(s.P, points.rest, reach, radius, points.span, lists, found),
                                            20, listed, "pairs"),
-            "build: labels": (lambda s=s: _labels(s.P, reach, found, listed, labels, scale), 50, listed, "pairs"),
+            "build: labels": (lambda s=s: _labels(s.P, rows, reach, found, listed, labels, scale), 50, listed,
+                              "pairs"),
             "build: slack sort": (lambda: _slack_sort(found, labels, segments, meta), 50, listed, "pairs")})
     # rounds interleave the thread counts, so a slow spell of the machine falls on both
     best: dict = {}

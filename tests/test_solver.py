@@ -24,7 +24,7 @@ from clothsim.solver.selfcollide.drift import drift_bound, levels
 from clothsim.solver.selfcollide.hashgrid import bounds
 from clothsim.solver.selfcollide.listbuild import COMPRESS, NARROW, build_list
 from clothsim.solver.selfcollide.nearstencil import COARSE_SKIN, NEAR_LEVELS, SKIN_FACTOR, grid_metric, skin_factor
-from clothsim.solver.selfcollide.slack import PAD_ROWS, SORT_LANES, _count_runs, checked_pairs
+from clothsim.solver.selfcollide.slack import PAD_ROWS, SORT_LANES, _count_runs, checked_pairs, label_pairs
 from clothsim.solver.shared import BLOCK
 from clothsim.solver.simd import FORCE_PORTABLE, has_compress
 from clothsim.solver.springs import (AHEAD_STEP, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
@@ -878,6 +878,38 @@ def test_the_slack_sort_counts_each_runs_labels(length):
         stop = lo + (r + 1) * size if r < SORT_LANES - 1 else hi
         expected[r] = np.bincount(labels[lo + r * size:stop], minlength=SLACK_BUCKETS)
     np.testing.assert_array_equal(_run_counts(labels, lo, hi), expected)
+
+
+@pytest.mark.parametrize("count", [0, 3, 8, 77, 4000])
+def test_slack_labels_are_the_exact_arithmetics(count):
+    """label_pairs, eight pairs at a time in vector code and the last few one by
+    one, gives every pair the bucket of the scalar formula in double
+    precision, rounded as written: pairs closer than the reach 0, at it to
+    the bit 1, farther out in steps up to the last bucket; only labels
+    ``k0:k1`` are written"""
+    rng = np.random.default_rng(count)
+    n, reach, scale = 200, 0.02, (SLACK_BUCKETS - 1) / 0.004
+    P = rng.uniform(-0.03, 0.03, (3, n))
+    rows = np.zeros((n, 4))
+    rows[:, :3] = P.T
+    a = rng.integers(0, n, count + 11).astype(np.int32)
+    b = rng.integers(0, n, count + 11).astype(np.int32)
+    if count > 5:  # a pair whose squared distance is the reach's square to the bit
+        P[:, a[5]], P[:, b[5]] = 0.0, [reach, 0.0, 0.0]
+        rows[:, :3] = P.T
+    pairs = np.stack([a, b])
+    d = P[:, b] - P[:, a]
+    d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    steps = np.minimum(1.0 + (d2 - reach * reach) * scale, SLACK_BUCKETS - 1.0)
+    expected = np.where(d2 < reach * reach, 0.0, steps).astype(np.int8)
+    labels = np.full(count + 11, -1, dtype=np.int8)
+    label_pairs(rows, reach, pairs, 5, 5 + count, labels, scale)
+    np.testing.assert_array_equal(labels[5:5 + count], expected[5:5 + count])
+    assert np.all(labels[:5] == -1) and np.all(labels[5 + count:] == -1)
+    if count > 5:
+        assert labels[5] == 1
+    if count > 1000:
+        assert set(labels[5:5 + count].tolist()) == set(range(SLACK_BUCKETS))
 
 
 def test_a_substep_checks_the_slack_buckets_its_drift_bound_reaches():

@@ -125,7 +125,7 @@ def calls(variant: str) -> list:
             (apply_sparse, (P, push, count, points.free, 1.0, touched, lists.tally)),
             (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, lists, zero, zero, f32)),
             (near_pushes, (P, 0.02, lists, zero, np.int64(1), True, 1.0, 1.0, f32, False)),
-            (label_pairs, (P, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
+            (label_pairs, (lists.rows, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
             (_keep, (lists.pos32, lists.reference, zero, i64)),
             (_close_up, (lists.pairs, lists.tally, zero)),
             (_share_segments, (lists.tally, zero)),

@@ -95,12 +95,14 @@ class _Rows(_Vector):
         low, high = [0, 1, 4, 5, 8, 9, 12, 13], [2, 3, 6, 7, 10, 11, 14, 15]
         return pick(even[0], even[1], low), pick(odd[0], odd[1], low), pick(even[0], even[1], high)
 
-    def squared_lengths(self, rows_ptr, ids_a, ids_b):
+    def squared_lengths(self, rows_ptr, ids_a, ids_b, flags=FAST):
         """|R[b] - R[a]|² of the eight springs joining points ``ids_a`` to
         ``ids_b`` (i32) of the (N, 4) rows at ``rows_ptr``, whose fourth column
         is 0: each difference and its square taken on its 256-bit row, then
         the rows' sums in ten shuffles, where the ends' coordinates transposed
-        first took twenty-two"""
+        first took twenty-two. With ``flags=()`` every operation is rounded as
+        written, ``(dx² + dy²) + dz²``, as :func:`.shared.gap2` computes it
+        without fast-math."""
         b = self.builder
         quad = ir.VectorType(ir.DoubleType(), 4)
         base = b.bitcast(rows_ptr, quad.as_pointer())
@@ -115,14 +117,14 @@ class _Rows(_Vector):
         # out in the springs' order
         squares = []
         for j in (0, 2, 1, 3, 4, 6, 5, 7):
-            d = b.fsub(row(ids_b, j), row(ids_a, j), flags=FAST)
-            squares.append(b.fmul(d, d, flags=FAST))
+            d = b.fsub(row(ids_b, j), row(ids_a, j), flags=flags)
+            squares.append(b.fmul(d, d, flags=flags))
         pairs = [pick(squares[j], squares[j + 1], list(range(8))) for j in range(0, LANES, 2)]
         # each pair's x + y and z + 0 side by side, then the two halves added
-        halves = [self.add(pick(pairs[h], pairs[h + 1], [0, 8, 2, 10, 4, 12, 6, 14]),
-                           pick(pairs[h], pairs[h + 1], [1, 9, 3, 11, 5, 13, 7, 15])) for h in (0, 2)]
-        return self.add(pick(halves[0], halves[1], [0, 1, 4, 5, 8, 9, 12, 13]),
-                        pick(halves[0], halves[1], [2, 3, 6, 7, 10, 11, 14, 15]))
+        halves = [b.fadd(pick(pairs[h], pairs[h + 1], [0, 8, 2, 10, 4, 12, 6, 14]),
+                         pick(pairs[h], pairs[h + 1], [1, 9, 3, 11, 5, 13, 7, 15]), flags=flags) for h in (0, 2)]
+        return b.fadd(pick(halves[0], halves[1], [0, 1, 4, 5, 8, 9, 12, 13]),
+                      pick(halves[0], halves[1], [2, 3, 6, 7, 10, 11, 14, 15]), flags=flags)
 
 
 @intrinsic

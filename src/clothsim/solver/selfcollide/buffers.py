@@ -6,6 +6,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..mesh_pulls import rows_buffer
 from ..shared import BLOCK
 
 NEAR = 5
@@ -117,6 +118,9 @@ class NeighbourList(NamedTuple):
     overwrite, int64 (parts, 2 SPARSE_PAIRS + 2)"""
     tally: np.ndarray
     """pairs found per share of the list build, pairs pushed per part, int64 (shares, 2)"""
+    rows: np.ndarray
+    """the positions at a build as rows of four (x, y, z, 0) [m], float64 (N, 4),
+    32-byte aligned: the slack labels' loads (see :func:`~.slack.label_pairs`)"""
 
     @classmethod
     def allocate(cls, num_points: int, cols: int | None = None,
@@ -171,6 +175,7 @@ class NeighbourList(NamedTuple):
             extent32=np.zeros(parts, dtype=np.int32),
             touched=np.zeros((parts, 2 * SPARSE_PAIRS + 2), dtype=np.int64),
             tally=np.zeros((parts * (QUERY_SHARES if parts > 1 else 1), 2), dtype=np.int64),
+            rows=rows_buffer(n),
         )
 
     @property

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from ..mesh_pulls import to_rows
 from ..shared import EXACT_OPTIONS, KERNEL_OPTIONS, part_range
 from .buffers import BUCKET, PAIRS, REBUILDS, SKIN, SLACK_BUCKETS, SPARSE_PAIRS, VALID
 from .drift import copy_and_level, drift_bound, single_copy, widened2
@@ -57,7 +58,7 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     reference, frame, centres = lists.reference, lists.frame, lists.centres
     push, count, meta, tally = lists.push, lists.count, lists.meta, lists.tally
     pos32, extent32, touched = lists.pos32, lists.extent32, lists.touched
-    near = lists.near_pairs
+    near, rows = lists.near_pairs, lists.rows
     n = P.shape[1]
     parts = push.shape[0]
     reach = 2.0 * thickness
@@ -100,6 +101,9 @@ def self_collide(P, points, simulation_steps, lists, pairs):
                     lo, hi = part_range(n, shares, j)
                     tally[j, 0] = query_points(grid, reach, radius, rest, lists, lo, hi, pairs,
                                                j * size, size, sparse)
+                # the positions as rows for the labels, each part its own points
+                lo, hi = part_range(n, parts, t)
+                to_rows(P, rows, lo, hi)
             most = 0
             for j in range(shares):
                 most = max(most, tally[j, 0])
@@ -133,7 +137,7 @@ def self_collide(P, points, simulation_steps, lists, pairs):
         for t in prange(parts):
             for i in range(t, segments.shape[0], parts):
                 k0 = segments[i, 0]
-                label_pairs(P, reach, pairs, k0, k0 + segments[i, 1], labels, (SLACK_BUCKETS - 1) / span2)
+                label_pairs(rows, reach, pairs, k0, k0 + segments[i, 1], labels, (SLACK_BUCKETS - 1) / span2)
         pairs = sort_by_slack(pairs, labels, segments, meta, parts)
         for c in range(3):
             frame[c] = P[c, 0]

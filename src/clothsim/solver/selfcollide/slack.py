@@ -8,27 +8,38 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ..shared import EXACT_OPTIONS, gap2
+from ..pull_lanes import LANES
+from ..shared import EXACT_OPTIONS
 from ..simd import BYTES64, count_equal
 from .buffers import BUCKET, SLACK_BUCKETS
+from .slack_lanes import slack_lanes
 
 @njit(**EXACT_OPTIONS)
-def label_pairs(P, reach, pairs, k0, k1, labels, scale):
+def label_pairs(R, reach, pairs, k0, k1, labels, scale):
     """The slack bucket of listed pairs ``k0:k1`` into ``labels``: 0 if the pair is
     closer than ``reach``, else 1 + its squared distance past the reach's
     square times ``scale``, at most SLACK_BUCKETS - 1. See
-    :func:`sort_by_slack`. A pass of its own, without the pushes: it has no
-    branch, and the pairs that touch, bucket 0, are pushed after the sort
-    like those of any substep."""
+    :func:`sort_by_slack`. ``R`` (N, 4) holds the positions as rows
+    (:func:`..mesh_pulls.to_rows`): eight pairs at a time take their ends
+    from it in vector code (:func:`.slack_lanes.slack_lanes`), the last few
+    one by one, with the same roundings. A pass of its own, without the
+    pushes: it has no branch, and the pairs that touch, bucket 0, are pushed
+    after the sort like those of any substep."""
     reach2 = reach * reach
-    x, y, z = P[0], P[1], P[2]
     last = np.float64(SLACK_BUCKETS - 1)
-    for k in range(k0, k1):
-        a = np.uint64(pairs[0, k])
-        b = np.uint64(pairs[1, k])
-        d2 = gap2(x, y, z, a, x, y, z, b)
+    a, b = pairs[0], pairs[1]
+    k = k0
+    while k + LANES <= k1:
+        slack_lanes(R, a, b, k, reach2, scale, last, labels)
+        k += LANES
+    for q in range(k, k1):
+        i, j = a[q], b[q]
+        dx = R[j, 0] - R[i, 0]
+        dy = R[j, 1] - R[i, 1]
+        dz = R[j, 2] - R[i, 2]
+        d2 = dx * dx + dy * dy + dz * dz
         steps = min(1.0 + (d2 - reach2) * scale, last)
-        labels[k] = np.int8(0 if d2 < reach2 else steps)
+        labels[q] = np.int8(0 if d2 < reach2 else steps)
 
 
 SORT_LANES = 8
