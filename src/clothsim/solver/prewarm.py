@@ -81,6 +81,7 @@ def calls(variant: str) -> list:
     from .handles import place_handles
     from .wind import blow, blow_grid, wind_buffer
     from .groups import Knobs, Points, Scratch
+    from .mesh_pulls import to_rows
     from .selfcollide import NeighbourList
     from .selfcollide.collide import _append, _close_up, _copy_pairs, _even_segments, _share_segments
     from .selfcollide.drift import _keep, _level_both, _to_single, drift_bound
@@ -126,6 +127,7 @@ def calls(variant: str) -> list:
             (pair_pushes, (P, 0.02, lists.pairs, zero, zero, zero, lists, zero, zero, f32)),
             (near_pushes, (P, 0.02, lists, zero, np.int64(1), True, 1.0, 1.0, f32, False)),
             (label_pairs, (lists.rows, 0.02, lists.pairs, zero, zero, np.zeros(0, dtype=np.int8), 1.0)),
+            (to_rows, (P, lists.rows, zero, i64)),
             (_keep, (lists.pos32, lists.reference, zero, i64)),
             (_close_up, (lists.pairs, lists.tally, zero)),
             (_share_segments, (lists.tally, zero)),

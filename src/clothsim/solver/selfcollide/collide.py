@@ -102,7 +102,7 @@ def self_collide(P, points, simulation_steps, lists, pairs):
                     tally[j, 0] = query_points(grid, reach, radius, rest, lists, lo, hi, pairs,
                                                j * size, size, sparse)
                 # the positions as rows for the labels, each part its own points
-                lo, hi = part_range(n, parts, t)
+                lo, hi = part_range(n, parts, own)
                 to_rows(P, rows, lo, hi)
             most = 0
             for j in range(shares):
