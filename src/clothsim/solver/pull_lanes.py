@@ -95,15 +95,25 @@ class _Rows(_Vector):
         low, high = [0, 1, 4, 5, 8, 9, 12, 13], [2, 3, 6, 7, 10, 11, 14, 15]
         return pick(even[0], even[1], low), pick(odd[0], odd[1], low), pick(even[0], even[1], high)
 
-    def squared_lengths(self, rows_ptr, ids_a, ids_b, flags=FAST):
-        """|R[b] - R[a]|² of the eight springs joining points ``ids_a`` to
-        ``ids_b`` (i32) of the (N, 4) rows at ``rows_ptr``, whose fourth column
-        is 0: each difference and its square taken on its 256-bit row, then
-        the rows' sums in ten shuffles, where the ends' coordinates transposed
-        first took twenty-two. With ``flags=()`` every operation is rounded as
-        written, ``(dx² + dy²) + dz²``, as :func:`.shared.gap2` computes it
-        without fast-math."""
+    def rows_at(self, R_type, R):
+        """a pointer to ``R[0, 0]`` of the (N, 4) rows R, which the far ends' loads index"""
+        zero = ir.Constant(self.intp, 0)
+        R_a = self.context.make_array(R_type)(self.context, self.builder, R)
+        return cgutils.get_item_pointer(self.context, self.builder, R_type, R_a, [zero, zero], wraparound=False)
+
+    def squared_lengths(self, R, a, b_, at, flags=FAST):
+        """|R[b] - R[a]|² of the eight pairs ``at:at + LANES`` joining points
+        ``a`` to ``b_`` of the (N, 4) rows R, whose fourth column is 0; each of
+        R, a and b_ a (type, value) of the codegen's arguments, a and b_ int32
+        (K,) arrays. Each difference and its square taken on its 256-bit row,
+        then the rows' sums in ten shuffles, where the ends' coordinates
+        transposed first took twenty-two. With ``flags=()`` every operation is
+        rounded as written, ``(dx² + dy²) + dz²``, as :func:`.shared.gap2`
+        computes it without fast-math."""
         b = self.builder
+        rows_ptr = self.rows_at(*R)
+        ivec = ir.VectorType(I32, LANES)
+        ids_a, ids_b = (b.load(_vector_at(self.context, b, t, value, [at], ivec), align=4) for t, value in (a, b_))
         quad = ir.VectorType(ir.DoubleType(), 4)
         base = b.bitcast(rows_ptr, quad.as_pointer())
 
@@ -164,9 +174,7 @@ def pull_lanes(typingctx, P, R, L, free, keep, other, k, k_rest, rows, at, count
         v = _Rows(context, b, valid)
         g0, g1, g2, dt2 = (v.splat(x) for x in cgutils.unpack_tuple(b, motion_v, 4))
         x = [v.masked_load(P_t, P_v, c, at) for c in range(3)]
-        R_a = context.make_array(R_t)(context, b, R_v)
-        rows_ptr = cgutils.get_item_pointer(context, b, R_t, R_a, [ir.Constant(intp, 0), ir.Constant(intp, 0)],
-                                            wraparound=False)
+        rows_ptr = v.rows_at(R_t, R_v)
         sums = [cgutils.alloca_once_value(b, v.constant(0.0)) for _ in range(3)]
         ivec = ir.VectorType(I32, LANES)
         with cgutils.for_range_slice(b, first, stop, ir.Constant(intp, 1), inc=True) as (r, _):
@@ -205,15 +213,9 @@ def over_lanes(typingctx, R, a, b, limit2, at):
     def codegen(context, b_, signature, args):
         R_t, a_t, b_t, limit_t, at_t = signature.args
         R_v, a_v, b_v, limit_v, at_v = args
-        intp = context.get_value_type(types.intp)
         at = context.cast(b_, at_v, at_t, types.intp)
         v = _Rows(context, b_, ir.Constant(ir.VectorType(ir.IntType(1), LANES), [1] * LANES))
-        ivec = ir.VectorType(I32, LANES)
-        R_a = context.make_array(R_t)(context, b_, R_v)
-        rows_ptr = cgutils.get_item_pointer(context, b_, R_t, R_a, [ir.Constant(intp, 0), ir.Constant(intp, 0)],
-                                            wraparound=False)
-        ids = [b_.load(_vector_at(context, b_, t, value, [at], ivec), align=4) for t, value in ((a_t, a_v), (b_t, b_v))]
-        l2 = v.squared_lengths(rows_ptr, *ids)
+        l2 = v.squared_lengths((R_t, R_v), (a_t, a_v), (b_t, b_v), at)
         limit = v.mul(v.load(limit_t, limit_v, at), v.constant(1.0 - 1e-12))
         return v.any(v.greater(l2, limit))
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from llvmlite import ir
 from numba import types
-from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
@@ -38,23 +37,16 @@ def slack_lanes(typingctx, R, a, b, at, reach2, scale, last, labels):
     def codegen(context, builder, signature, args):
         R_t, a_t, b_t, at_t, reach_t, scale_t, last_t, labels_t = signature.args
         R_v, a_v, b_v, at_v, reach_v, scale_v, last_v, labels_v = args
-        intp = context.get_value_type(types.intp)
         at = context.cast(builder, at_v, at_t, types.intp)
         v = _Rows(context, builder, ir.Constant(ir.VectorType(ir.IntType(1), LANES), [1] * LANES))
-        R_a = context.make_array(R_t)(context, builder, R_v)
-        rows_ptr = cgutils.get_item_pointer(context, builder, R_t, R_a, [ir.Constant(intp, 0), ir.Constant(intp, 0)],
-                                            wraparound=False)
-        ivec = ir.VectorType(I32, LANES)
-        ids = [builder.load(_vector_at(context, builder, t, value, [at], ivec), align=4)
-               for t, value in ((a_t, a_v), (b_t, b_v))]
-        d2 = v.squared_lengths(rows_ptr, *ids, flags=())
+        d2 = v.squared_lengths((R_t, R_v), (a_t, a_v), (b_t, b_v), at, flags=())
         reach2, scale, last = (v.splat(context.cast(builder, x, t, types.float64))
                                for x, t in ((reach_v, reach_t), (scale_v, scale_t), (last_v, last_t)))
         steps = builder.fadd(v.constant(1.0), builder.fmul(builder.fsub(d2, reach2), scale))
         steps = builder.select(builder.fcmp_ordered("<", last, steps), last, steps)
         steps = builder.select(builder.fcmp_ordered("<", d2, reach2), v.constant(0.0), steps)
         bytes_ = ir.VectorType(ir.IntType(8), LANES)
-        out = builder.trunc(builder.fptosi(steps, ivec), bytes_)
+        out = builder.trunc(builder.fptosi(steps, ir.VectorType(I32, LANES)), bytes_)
         builder.store(out, _vector_at(context, builder, labels_t, labels_v, [at], bytes_), align=1)
         return context.get_dummy_value()
 
