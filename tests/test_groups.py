@@ -44,10 +44,9 @@ MAX_PARAMETERS = 10
 # an entry that no longer holds (remove it once the code is fixed).
 
 LONG_SIGNATURES = {
-    "_scan": 19,  # inlined into query_points: the point's and the build's values one by one
+    "_scan": 18,  # inlined into query_points: the point's and the build's values one by one
     "_inside": 17,  # inlined into _scan: the vector test's planes and scalars one by one
     "_put_checked": 15,  # inlined into _scan: the append's arrays and scalars one by one
-    "query_points": 11,  # the cell grid and the build's scalars beside the list
     "_first_crossing": 12,  # inlined into the mesh kernels: the segment's ends one coordinate at a time
     "_hit": 11,  # inlined into _first_crossing: the segment and its slack as scalars, no array per point
     "_advance_mesh": 11,  # the general path's springs in two groups, lists and slots: nested, no prange takes them

@@ -14,21 +14,10 @@ from ..shared import EXACT_OPTIONS, KERNEL_OPTIONS, part_range
 from .buffers import BUCKET, PAIRS, REBUILDS, SKIN, SLACK_BUCKETS, SPARSE_PAIRS, VALID
 from .drift import copy_and_level, drift_bound, single_copy, widened2
 from .hashgrid import sort_into_cells
-from .listbuild import COMPRESS, query_points
+from .listbuild import query_points
 from .nearstencil import NEAR_LEVELS, near_pushes
 from .pushes import apply_pushes, apply_sparse, pair_pushes
 from .slack import checked_pairs, label_pairs, sort_by_slack
-
-DENSE_LIST = 0.4
-"""pairs per point of the last list above which the list build, where it has no
-compress (see COMPRESS), no longer tests a chunk's bits for none before
-writing them: see :func:`query_points`"""
-
-DENSE_COMPRESSED = 1.0
-"""DENSE_LIST where the build appends with the compress: a piled-up 50x50 cloth
-(1.4 pairs a point) built its list faster without the test, a hanging
-100x100 one (0.26) slower (docs/performance.md, 'List build')"""
-
 
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, points, simulation_steps, lists, pairs):
@@ -90,9 +79,6 @@ def self_collide(P, points, simulation_steps, lists, pairs):
         # cost of a share depends on how crowded its part of the cloth is
         shares = tally.shape[0]
         size = pairs.shape[1] // shares
-        # skip a chunk with no pair before appending only where the last list's
-        # density says chunks are mostly empty
-        sparse = meta[PAIRS] < (DENSE_COMPRESSED if COMPRESS else DENSE_LIST) * n
         while True:  # once more with room for twice the largest share when one overflowed
             for t in prange(parts):
                 own = np.int64(t)  # prange's index is unsigned: with the 0, a float
@@ -100,7 +86,7 @@ def self_collide(P, points, simulation_steps, lists, pairs):
                 for j in range(t, shares, parts):
                     lo, hi = part_range(n, shares, j)
                     tally[j, 0] = query_points(grid, reach, radius, rest, lists, lo, hi, pairs,
-                                               j * size, size, sparse)
+                                               j * size, size)
                 # the positions as rows for the labels, each part its own points
                 lo, hi = part_range(n, parts, own)
                 to_rows(P, rows, lo, hi)

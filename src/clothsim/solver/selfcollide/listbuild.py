@@ -36,7 +36,7 @@ PUT_ROOM = LANES if COMPRESS else 2
 
 
 @njit(**EXACT_OPTIONS)
-def build_list(P, rest, reach, radius, span, lists, pairs, sparse=True):
+def build_list(P, rest, reach, radius, span, lists, pairs):
     """Every pair of points closer than ``radius`` and not closer than ``reach`` at
     rest, each pair once, into ``pairs`` (2, capacity); returns how many there
     are, which may exceed the capacity: then only the first ones were stored.
@@ -52,11 +52,11 @@ def build_list(P, rest, reach, radius, span, lists, pairs, sparse=True):
     # the same argument types as the substep's call (no constants): one compile serves both
     zero = np.int64(0)
     return query_points(grid, reach, radius, rest, lists, zero, np.int64(P.shape[1]), pairs, zero,
-                        np.int64(pairs.shape[1]), np.bool_(sparse))
+                        np.int64(pairs.shape[1]))
 
 
 @njit(**EXACT_OPTIONS)
-def query_points(grid, reach, radius, rest, lists, first, stop, pairs, base, capacity, sparse):
+def query_points(grid, reach, radius, rest, lists, first, stop, pairs, base, capacity):
     """The list pairs (pk, q) of points ``first <= pk < stop`` from the sorted
     cells of :func:`sort_into_cells` into ``pairs[:, base:base + capacity]``;
     returns how many there are, which may exceed the capacity. ``rest`` (N, 3)
@@ -78,15 +78,14 @@ def query_points(grid, reach, radius, rest, lists, first, stop, pairs, base, cap
     pair inside the radius is missed, and a pair a hair outside may be
     listed, which only costs its check.
 
-    Where the rest layout lets no further test reject a pair (``near_metric``
-    exact) and the pairs array has room, the bits go straight into it
-    (:func:`_put_compressed` or :func:`_put`), without a branch per bit;
-    otherwise each goes through the exact tests and the capacity check
-    (:func:`_put_checked`). A ``sparse`` build first skips the chunks with no
-    bit: a build on a hanging cloth (few pairs per point), where that branch
-    is nearly always right. In a crowded build it was wrong about as often as
-    not, and the build is faster without it, with either append (see
-    DENSE_LIST, DENSE_COMPRESSED). The ranges are walked with unsigned
+    A chunk with no bit is skipped. Where the rest layout lets no further
+    test reject a pair (``near_metric`` exact) and the pairs array has room,
+    the bits of the others go straight into it (:func:`_put_compressed` or
+    :func:`_put`), without a branch per bit; otherwise each goes through the
+    exact tests and the capacity check (:func:`_put_checked`). Most chunks
+    hold no pair even on a piled-up cloth, and the skip made every build
+    timed shorter, hanging, falling or piled, with either append
+    (docs/performance.md, 'List build'). The ranges are walked with unsigned
     indices: with signed ones numba adds a negative-index wraparound that
     turns the loads into gathers.
     """
@@ -125,16 +124,16 @@ def query_points(grid, reach, radius, rest, lists, first, stop, pairs, base, cap
             hi = cell_start[row + np.uint64(ix1)]
             direct = exact and found + (hi - lo) + PUT_ROOM <= capacity
             if hi - lo <= LONG_RANGE:
-                found = _scan(own, columns, k, lo, hi, NARROW, metric, sparse, direct, order, pairs,
+                found = _scan(own, columns, k, lo, hi, NARROW, metric, direct, order, pairs,
                               pk, base, found, capacity, exact, rest, reach2, near_table)
             else:
-                found = _scan(own, columns, k, lo, hi, WIDE, metric, sparse, direct, order, pairs,
+                found = _scan(own, columns, k, lo, hi, WIDE, metric, direct, order, pairs,
                               pk, base, found, capacity, exact, rest, reach2, near_table)
     return found
 
 
 @njit(**EXACT_OPTIONS, inline="always")
-def _scan(own, columns, k, lo, hi, width, metric, sparse, direct, order, pairs, pk, base, found, capacity,
+def _scan(own, columns, k, lo, hi, width, metric, direct, order, pairs, pk, base, found, capacity,
           exact, rest, reach2, near_table):
     """The pairs of the point in slot k (point pk) with slots ``lo:hi``, ``width`` at
     a time, appended after the ``found`` ones; returns the new count. See
@@ -147,7 +146,7 @@ def _scan(own, columns, k, lo, hi, width, metric, sparse, direct, order, pairs, 
     for at in range(lo, hi, width):
         mask = _inside(x, y, z, gr, gc, sx, sy, sz, grid_row, grid_col, at, hi, width, radius2, wr2,
                        wc2, rho2)
-        if sparse and mask == 0:
+        if mask == 0:
             continue
         if direct:
             found = _put_direct(mask, at, order, pairs, pk, base + found, width) - base
@@ -182,10 +181,11 @@ def _put(mask, at, order, pairs, pk, end, width):
     """Append the pairs (pk, point in slot ``at + j``) of the bits j of ``mask`` at
     ``pairs[:, end:]``; returns the new end. The first two are written
     whether their bit is there or not, and counted only if it is: most masks
-    hold none, one or two bits, and a loop over them ended in a mispredicted
-    branch. The caller leaves room for two pairs more than the bits
-    (PUT_ROOM), and ``order`` a slot past the points (an empty mask reads
-    slot ``at``). ``width``: the bits the mask may hold (unused here)."""
+    that are not skipped hold one or two bits, and a loop over them ended in
+    a mispredicted branch. The caller leaves room for two pairs more than the
+    bits (PUT_ROOM), and ``order`` a slot past the points (a mask with one
+    bit reads slot ``at`` for its second). ``width``: the bits the mask may
+    hold (unused here)."""
     j = np.int64(trailing_zeros(mask)) & 63
     pairs[0, end] = pk
     pairs[1, end] = order[np.uint64(at + j)]
