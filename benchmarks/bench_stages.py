@@ -24,10 +24,14 @@ points or pairs) and nanoseconds per item.
   Provot pass, self-collision between list builds, its drift test with the
   copy to single precision made beside it, the cell sort of a build, and a
   whole build (the substep of self-collision that makes a new list); then,
-  on one thread, a build's three passes over the pairs it finds (``pairs``):
-  the cell sort with the query of every point's neighbours (``build_list``),
-  the pairs' slack labels (with their copy of the positions as rows), and
-  the sort by slack.
+  on one thread, the parts of self-collision between builds (``between
+  builds: ...``, on the list as just built: the near stencil with every
+  block checked, the pairs that touched at the build, the checks alone of
+  those in the next seven slack buckets, which none of them passes yet, and
+  the application of the pushes to every point), and a build's three passes
+  over the pairs it finds (``pairs``): the cell sort with the query of every
+  point's neighbours (``build_list``), the pairs' slack labels (with their
+  copy of the positions as rows), and the sort by slack.
 
 - the general path (spring lists, ``meshstep.py``) on the irregular mesh of
   ``bench_sim.py --mesh-only`` (10,000 points) in ``sphere`` after 10 frames,
@@ -55,11 +59,13 @@ from numba import njit, prange
 from clothsim import Simulation
 from clothsim.solver.mesh_pulls import rows_buffer, to_rows
 from clothsim.solver.provot import provot
-from clothsim.solver.selfcollide.buffers import PAIRS, SKIN, VALID
+from clothsim.solver.selfcollide.buffers import BUCKET, PAIRS, SKIN, VALID
 from clothsim.solver.selfcollide.collide import self_collide
-from clothsim.solver.selfcollide.drift import copy_and_level, drift_bound
+from clothsim.solver.selfcollide.drift import copy_and_level, drift_bound, widened2
 from clothsim.solver.selfcollide.hashgrid import sort_into_cells
 from clothsim.solver.selfcollide.listbuild import build_list
+from clothsim.solver.selfcollide.nearstencil import NEAR_LEVELS, near_pushes
+from clothsim.solver.selfcollide.pushes import apply_pushes, pair_pushes
 from clothsim.solver.selfcollide.slack import SLACK_BUCKETS, label_pairs, sort_by_slack
 from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
 from clothsim.solver.springs import integrate, spring_forces, verlet_gather
@@ -98,6 +104,36 @@ def _drift(P, lists, reach):
     extent = copy_and_level(P, lists.frame, lists.pos32, lists.extent32, lists.reference, skin, lists.centres,
                             worst)
     return drift_bound(lists.pos32, lists.reference, skin, lists.centres, extent + lists.frame[3], worst)
+
+
+@njit
+def _extent(P, lists, reach):
+    """the extent of the copy to single precision, as the drift test makes it"""
+    skin = 0.001 * lists.meta[SKIN] * reach
+    worst = np.empty((lists.extent32.shape[0], 2), dtype=np.int32)
+    return copy_and_level(P, lists.frame, lists.pos32, lists.extent32, lists.reference, skin, lists.centres,
+                          worst)
+
+
+@njit
+def _between(P, free, lists, reach, wide2, inv_steps, part):
+    """one part of self-collision between builds, on one thread, as the substep
+    calls it, on the list the copy's last build made: ``part`` 0 the near
+    stencil with every block checked, 1 the pairs that touched at the build
+    (pushed without a branch), 2 those of the next seven slack buckets (tested
+    in single precision first), 3 the pushes applied to every point"""
+    meta = lists.meta
+    touching, later = meta[BUCKET], meta[BUCKET + 7]
+    if part == 0:
+        span2 = (reach * (1.0 + 0.001 * meta[SKIN])) ** 2 - reach * reach
+        return near_pushes(P, reach, lists, 0, 1, False, np.float64(NEAR_LEVELS + 1), NEAR_LEVELS / span2, wide2,
+                           True)
+    if part == 1:
+        return pair_pushes(P, reach, lists.pairs, 0, touching, touching, lists, 0, 0, wide2)
+    if part == 2:
+        return pair_pushes(P, reach, lists.pairs, touching, touching, later, lists, 0, 0, wide2)
+    apply_pushes(P, lists.push, lists.count, free, inv_steps, 0, P.shape[1])
+    return 0
 
 
 @njit
@@ -314,6 +350,22 @@ def piled_stages(size: int, rounds: int, info: dict, frame: int | None = None) -
     sol = copy.solver
     lists, points, s = sol.lists, sol.points, copy.scratch
     reach = 2.0 * points.thickness
+    # the parts of self-collision between builds, on that list as built: the
+    # stencil's every block, the pairs that touched at the build, those of the
+    # next seven slack buckets (none of which touches yet: their checks alone)
+    # and the application of the pushes
+    copy.reset()
+    wide2 = widened2(reach, _extent(s.P, lists, reach))
+    touching, later = int(lists.meta[BUCKET]), int(lists.meta[BUCKET + 7])
+    inv_steps = 1.0 / lead.params.simulation_steps
+    stencil = int(sum(s.P.shape[1] - o for o in lists.near_offset))
+    for part, (stage, work, unit) in enumerate((
+            ("between builds: near stencil, every block", stencil, "pairs"),
+            ("between builds: pairs that touched at the build", touching, "pairs"),
+            ("between builds: pairs of the next 7 buckets", later - touching, "pairs"),
+            ("between builds: pushes applied", s.P.shape[1], "points"))):
+        calls[stage] = (lambda s=s, part=part: _between(s.P, points.free, lists, reach, wide2, inv_steps, part),
+                        200, work, unit)
     radius = reach + 0.001 * lists.meta[SKIN] * reach
     found = np.empty((2, 40 * s.P.shape[1] + 64), dtype=np.int32)
     listed = build_list(s.P, points.rest, reach, radius, points.span, lists, found)
