@@ -16,8 +16,12 @@ from .buffers import NEAR, NeighbourList
 from .listbuild import build_list
 from .pushes import push_pair
 
-SKIN_FACTOR = 0.5
-"""skin of the neighbour list as a fraction of the reach: larger lists, rarer rebuilds"""
+SKIN_FACTOR = 0.35
+"""skin of the neighbour list as a fraction of the reach: larger lists, rarer
+rebuilds. A piled 100x100 or 200x200 cloth, and the meshes of as many points,
+ran faster with 0.35 than with 0.5, 0.45, 0.4 or 0.3: each build finds fewer
+pairs and each substep checks fewer, which repays the more frequent builds
+(figures: docs/performance.md, 'Near stencil')"""
 
 COARSE_SKIN = 0.75
 """the skin of a coarse cloth: see :func:`skin_factor`"""
@@ -51,7 +55,7 @@ def skin_factor(rest: np.ndarray, rows: int, cols: int, thickness: float) -> flo
     every standard scene) takes COARSE_SKIN: at 50x50 the cloth on the
     sphere rebuilt its list 5.0 times per 100 substeps instead of 7.4, for
     two more stencil offsets, and self-collision got cheaper. A finer one
-    keeps SKIN_FACTOR: at 100x100 the wider skin took rings of grid
+    takes SKIN_FACTOR: at 100x100 the wider skin took rings of grid
     neighbours into the stencil and made self-collision slower, at 200x200
     more so, as offsets past NEAR went into the list for good.
     """
