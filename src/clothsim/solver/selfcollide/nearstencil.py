@@ -18,10 +18,11 @@ from .pushes import push_pair
 
 SKIN_FACTOR = 0.35
 """skin of the neighbour list as a fraction of the reach: larger lists, rarer
-rebuilds. A piled 100x100 or 200x200 cloth, and the meshes of as many points,
-ran faster with 0.35 than with 0.5, 0.45, 0.4 or 0.3: each build finds fewer
-pairs and each substep checks fewer, which repays the more frequent builds
-(figures: docs/performance.md, 'Near stencil')"""
+rebuilds. The piled 100x100 cloth ran fastest with 0.35 of the skins from
+0.3 to 0.5, and the piled 200x200 one and the meshes of 10,000 points ran
+faster with it than with 0.5: each build finds fewer pairs and each substep
+checks fewer, which repays the more frequent builds (figures:
+docs/performance.md, 'A narrower skin for fine cloths')"""
 
 COARSE_SKIN = 0.75
 """the skin of a coarse cloth: see :func:`skin_factor`"""
