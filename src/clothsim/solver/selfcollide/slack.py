@@ -143,18 +143,23 @@ def _place_runs(pairs, labels, lo, hi, at, out):
     size = (hi - lo) // SORT_LANES
     for i in range(size):
         for r in range(SORT_LANES):
-            _place(pairs, labels, lo + r * size + i, at, r, out)
+            _place(pairs, labels, lo + r * size + i, at, np.uint64(r), out)
     for k in range(lo + SORT_LANES * size, hi):
-        _place(pairs, labels, k, at, SORT_LANES - 1, out)
+        _place(pairs, labels, k, at, np.uint64(SORT_LANES - 1), out)
 
 
 @njit(**EXACT_OPTIONS, inline="always")
 def _place(pairs, labels, k, at, r, out):
-    """Put pair k into ``out`` at the next place row r of ``at`` holds for its label."""
-    j = labels[k]
-    out[0, at[r, j]] = pairs[0, k]
-    out[1, at[r, j]] = pairs[1, k]
-    at[r, j] += 1
+    """Put pair k into ``out`` at the next place row r of ``at`` holds for its label.
+    Every index is unsigned: a signed one costs a negative-index check per
+    access, and with them the sort took twice as long (docs/performance.md,
+    'Slack sort')."""
+    q = np.uint64(k)
+    j = np.uint64(labels[q])
+    place = np.uint64(at[r, j])
+    out[0, place] = pairs[0, q]
+    out[1, place] = pairs[1, q]
+    at[r, j] = place + np.uint64(1)
 
 
 @njit(cache=True, inline="always")
