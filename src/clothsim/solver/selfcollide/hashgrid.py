@@ -120,14 +120,16 @@ def sort_into_cells(P, radius, span, lists, copy):
         far = min(_cell((z[p] + radius - z0) * inv), nz - 1) > iz
         rows[p] = (1 | (2 if up else 0) | (4 if far and down else 0) | (8 if far else 0)
                    | (16 if far and up else 0))
+    # unsigned indices here and below: a signed one costs a negative-index check
+    # per access (docs/performance.md, 'Cell sort')
     for p in range(n):
-        cell_start[cell_of[p] + 1] += 1
+        cell_start[np.uint64(cell_of[p] + 1)] += 1
     for c in range(1, cells + 1):
         cell_start[c] += cell_start[c - 1]
     # place each point at the end of its cell's remaining room, from the last
     # point down, so slots keep point order; then shift the starts back
     for p in range(n - 1, -1, -1):
-        c = cell_of[p] + 1
+        c = np.uint64(cell_of[p] + 1)
         cell_start[c] -= 1
         slot[p] = cell_start[c]
     for c in range(cells):
@@ -140,7 +142,8 @@ def sort_into_cells(P, radius, span, lists, copy):
     layout = lists.layout
     if layout.shape[1] == n:  # a mesh: its rest layout stands for the rows and columns
         lu, lv = layout[0], layout[1]
-        for p in range(n):
+        for q in range(n):
+            p = np.uint64(q)
             k = np.uint64(slot[p])
             order[k] = p
             sx[k] = np.float32(x[p] - x0)
@@ -152,7 +155,7 @@ def sort_into_cells(P, radius, span, lists, copy):
         for first in range(0, n, cols):
             row = np.float32(first // cols)
             for i in range(min(cols, n - first)):
-                p = first + i
+                p = np.uint64(first + i)
                 k = np.uint64(slot[p])
                 order[k] = p
                 sx[k] = np.float32(x[p] - x0)
