@@ -35,8 +35,9 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, lists, part, before, wide2):
     room = touched.shape[0] // 2 - 1
     for k in range(k0, sure):
         # unsigned: a signed index costs a negative-index check per access
-        a = np.uint64(pairs[0, k])
-        b = np.uint64(pairs[1, k])
+        q = np.uint64(k)
+        a = np.uint64(pairs[0, q])
+        b = np.uint64(pairs[1, q])
         dx = x[a] - x[b]
         dy = y[a] - y[b]
         dz = z[a] - z[b]
@@ -45,14 +46,15 @@ def pair_pushes(P, reach, pairs, k0, sure, k1, lists, part, before, wide2):
         d = np.sqrt(d2 if close else reach2)  # the push of a pair at the reach is zero
         add_push(push, count, a, b, dx, dy, dz, (reach - d) / d, 1.0 if close else 0.0)
         # noted whether it touches or not: the next pair that does overwrites it
-        at = min(before + hits, room)
-        touched[2 * at] = a
-        touched[2 * at + 1] = b
+        at = np.uint64(2 * min(before + hits, room))
+        touched[at] = a
+        touched[at + np.uint64(1)] = b
         hits += 1 if close else 0
     qx, qy, qz = Q[0], Q[1], Q[2]
     for k in range(sure, k1):
-        a = np.uint64(pairs[0, k])
-        b = np.uint64(pairs[1, k])
+        q = np.uint64(k)
+        a = np.uint64(pairs[0, q])
+        b = np.uint64(pairs[1, q])
         if not gap2(qx, qy, qz, a, qx, qy, qz, b) < wide2:
             continue
         d2 = gap2(x, y, z, a, x, y, z, b)
@@ -74,8 +76,9 @@ def push_pair(P, a, b, reach, push, count, touched, k):
     d = np.sqrt(dx * dx + dy * dy + dz * dz)
     add_push(push, count, a, b, dx, dy, dz, (reach - d) / d, 1.0)
     if 2 * k < touched.shape[0]:
-        touched[2 * k] = a
-        touched[2 * k + 1] = b
+        at = np.uint64(2 * k)
+        touched[at] = a
+        touched[at + np.uint64(1)] = b
 
 
 @njit(cache=True, inline="always")
@@ -111,7 +114,7 @@ def apply_sparse(P, push, count, free, inv_steps, touched, tally):
     for t in range(parts):
         ends = touched[t]
         for k in range(2 * tally[t, 1]):
-            a = ends[k]
+            a = np.uint64(ends[k])
             c = count[0, a]
             for u in range(1, parts):
                 c += count[u, a]
