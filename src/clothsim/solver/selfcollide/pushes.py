@@ -114,7 +114,7 @@ def apply_sparse(P, push, count, free, inv_steps, touched, tally):
     for t in range(parts):
         ends = touched[t]
         for k in range(2 * tally[t, 1]):
-            a = np.uint64(ends[k])
+            a = ends[k]
             c = count[0, a]
             for u in range(1, parts):
                 c += count[u, a]
