@@ -264,12 +264,11 @@ def near_pushes(P, reach, lists, part, parts, fresh, reachable, scale, wide2, si
             mask = masks[b]
             while mask != 0:
                 j, mask = pop_lowest(mask)
-                a = np.uint64(first + b * BLOCK + j)
-                a_o = a + np.uint64(o)
+                a = first + b * BLOCK + j
                 if single:
-                    d2 = gap2(x, y, z, a, x, y, z, a_o)
+                    d2 = gap2(x, y, z, a, x, y, z, a + o)
                     if not ((d2 < reach2) & (d2 > 0.0)):
                         continue
-                push_pair(P, a, a_o, reach, push, count, touched, hits)
+                push_pair(P, a, a + o, reach, push, count, touched, hits)
                 hits += 1
     return hits
