@@ -63,6 +63,7 @@ from .meshgrid import (BARY_TOL, G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, 
 from .meshhint import hint_pass
 from .meshlook import look, look_settle
 from .meshpose import frame as _frame
+from .meshpose import is_rest
 from .meshpose import to_rest as _to_rest
 from .meshpose import to_world as _to_world
 from .meshslab import clear_side, pack_meshes
@@ -492,16 +493,21 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
             continue
         hint_pass(P, L, (prisms, hints, k, first, last, hinted, closed), (before, now), G,
                   (margin, keep, True), lo, (need, listed[:count]))
+        plain = is_rest(before) and is_rest(now)
         for i in range(count):
             p = lo + listed[i]
             if not need[p - lo]:
                 continue
-            x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
-            x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
-            if not _finite6(x0, y0, z0, x1, y1, z1) or _misses_box(G, x0, y0, z0, x1, y1, z1, reach):
-                continue
-            if (_clear(items, G, x0, y0, z0, x1, y1, z1, short, closed)
-                    or clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed)):
+            # the look listed the point, so its segment is finite, meets the mesh's box
+            # and does not end quietly (what _clear tests): those tests are not made
+            # again. A mesh in its rest pose is read as it stands (see look)
+            if plain:
+                x0, y0, z0 = L[0, p], L[1, p], L[2, p]
+                x1, y1, z1 = P[0, p], P[1, p], P[2, p]
+            else:
+                x0, y0, z0 = _to_rest(before, L[0, p], L[1, p], L[2, p])
+                x1, y1, z1 = _to_rest(now, P[0, p], P[1, p], P[2, p])
+            if clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed):
                 if p < hinted:
                     hints[k, p] = -1  # a hint that could not tell: see the module's docstring
                 continue
