@@ -10,8 +10,8 @@ from .mesh_pulls import pull_step, refresh_constants, to_rows
 from .meshsprings import mesh_provot
 from .pull_lanes import LANES
 from .selfcollide import self_collide
-from .shared import part_range
-from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _from_planes, _hold, _renamed, _to_planes
+from .shared import part_range, renamed
+from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _from_planes, _hold, _to_planes
 from .wind import blow
 
 
@@ -90,5 +90,5 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
     return _farthest(P, center), pairs
 
 
-advance_mesh = njit(**ADVANCE_OPTIONS)(_renamed(_advance_mesh, "advance_mesh"))
-advance_mesh_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(_renamed(_advance_mesh, "advance_mesh_parallel"))
+advance_mesh = njit(**ADVANCE_OPTIONS)(renamed(_advance_mesh, "advance_mesh"))
+advance_mesh_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(renamed(_advance_mesh, "advance_mesh_parallel"))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import types
+
 import numpy as np
 from numba import njit
 from numba.cpython.unsafe.numbers import trailing_zeros
@@ -81,3 +83,16 @@ def pop_lowest(mask):
 def part_range(n, parts, t):
     """Items ``lo:hi`` of part t when n items are cut into ``parts`` nearly equal ranges."""
     return t * n // parts, (t + 1) * n // parts
+
+
+def renamed(f, name: str, **swapped):
+    """A copy of the Python function ``f`` under another name, reading the globals
+    ``swapped`` in place of its module's: numba caches compiled code by the
+    function's name, so two builds of one body (serial and parallel; with the
+    helpers it calls swapped for others) must not share a name."""
+    g = types.FunctionType(f.__code__, {**f.__globals__, **swapped} if swapped else f.__globals__, name,
+                           f.__defaults__, f.__closure__)
+    g.__qualname__ = name
+    g.__module__ = f.__module__
+    g.__doc__ = f.__doc__
+    return g

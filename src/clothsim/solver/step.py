@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import types
-
 import numba
 import numpy as np
 from numba import njit, prange
@@ -14,6 +12,7 @@ from .wind import blow_grid
 from .provot import provot
 from .springs import CHUNK, gather_ahead, integrate
 from .selfcollide import self_collide
+from .shared import renamed
 
 PARALLEL_MIN_POINTS = 5000
 """cloths with fewer points run on one thread unless asked: each parallel
@@ -142,22 +141,11 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     return _farthest(P, center), pairs
 
 
-def _renamed(f, name: str):
-    """A copy of function f under another name: numba caches compiled code by
-    the function's name, and the serial and parallel builds of one body must
-    not share a cache entry."""
-    g = types.FunctionType(f.__code__, f.__globals__, name, f.__defaults__, f.__closure__)
-    g.__qualname__ = name
-    g.__module__ = f.__module__
-    g.__doc__ = f.__doc__
-    return g
-
-
 ADVANCE_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy", nogil=True)
 """nogil: a frame's substeps release the GIL, so a writer's thread (an exporter
 loading its library, say) runs beside them"""
-advance = njit(**ADVANCE_OPTIONS)(_renamed(_advance, "advance"))
-advance_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(_renamed(_advance, "advance_parallel"))
+advance = njit(**ADVANCE_OPTIONS)(renamed(_advance, "advance"))
+advance_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(renamed(_advance, "advance_parallel"))
 
 
 @njit(cache=True, inline="always")

@@ -34,10 +34,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..shared import EXACT_OPTIONS
+from ..shared import EXACT_OPTIONS, renamed
 from ..simd import ROWS8, rows_to_columns
 from .meshgrid import put_off
-from .meshpose import to_rest, to_world
+from .meshpose import is_rest, to_rest, to_world
 from .meshprism import P_DOWN, P_NORMAL, P_OFFSET, P_ROUNDING, P_UP, ROW_FIELDS
 
 BLOCK = 64
@@ -173,6 +173,19 @@ def _decide(S, O, count, frames, tiny, closed, placing):
         O[_at(O_ROUTE, j)] = 1.0 if inside & nothing else (2.0 if placed & sure else 0.0)
 
 
+@njit(**EXACT_OPTIONS, inline="always")
+def _as_is(frame, x, y, z):
+    """(x, y, z) unturned: the turns of a mesh in its rest pose"""
+    return x, y, z
+
+
+_decide_still = njit(**EXACT_OPTIONS)(renamed(_decide.py_func, "_decide_still", to_rest=_as_is, to_world=_as_is))
+""":func:`_decide` for a mesh in its rest pose in both frames (:func:`.meshpose.is_rest`),
+without the turns into its frame and back, which give the same coordinates there
+(x - 0 = x, 1x + 0y + 0z = x, but for the sign of a zero) and which LLVM, without
+fastmath, cannot drop itself"""
+
+
 @njit(**EXACT_OPTIONS)
 def _gather(S, P, L, prisms, hints, k, which, lo, tri):
     """Column j of the scratch S filled for point ``lo + which[j]`` (all of ``which``, at
@@ -226,6 +239,7 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     if m == 0:
         return
     which[m:m + PAD] = which[m - 1]  # the last block's padding: its last point again
+    still = is_rest(frames[0]) and is_rest(frames[1])
     S = np.empty(S_ROWS * BLOCK)
     O = np.empty(O_ROWS * BLOCK)
     tri = np.empty(BLOCK, dtype=np.uint64)
@@ -233,7 +247,10 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
         real = min(BLOCK, m - b)
         block = which[b:b + min(BLOCK, (real + PAD - 1) // PAD * PAD)]
         _gather(S, P, L, prisms, hints, k, block, lo, tri)
-        _decide(S, O, block.shape[0], frames, G[13], closed, placing)
+        if still:
+            _decide_still(S, O, block.shape[0], frames, G[13], closed, placing)
+        else:
+            _decide(S, O, block.shape[0], frames, G[13], closed, placing)
         for j in range(real):
             q = block[j]
             p = np.uint64(lo + q)
