@@ -73,8 +73,10 @@ def test_the_settle_pass_flags_the_moved_points_as_the_vector_pass_does(moved_sh
         free[rng.integers(0, n, 20)] = 0.0
         (c0, need0, list0), (c1, need1, list1) = both(packed, pose, P, Q, free)
         assert c0 == c1
-        np.testing.assert_array_equal(need0, need1)
         np.testing.assert_array_equal(list0, list1)
+        # the kernels read the flags only through the list: a flagged point the
+        # vector pass then found quiet may keep its flag there
+        assert need0[list0].all() and need1[list1].all()
         assert c0 <= moved.sum()
         if 0.01 < moved_share < 0.5:  # a real share of them near the torus
             assert c0 > 0
@@ -99,8 +101,8 @@ def test_only_moved_free_finite_points_near_the_surface_are_listed():
 @pytest.mark.parametrize("closed", [False, True])
 def test_the_walks_list_the_busy_flagged_points(closed):
     """the end of the vector pass: the flagged points whose cell is busy (NEAR, or
-    inside a closed mesh) or whose move is long (cell -1), flags, list and count as
-    NumPy says, for any share of flagged points and lengths that are not a
+    inside a closed mesh) or whose move is long (cell -1), list and count as
+    NumPy says, their flags kept, for any share of flagged points and lengths that are not a
     multiple of eight; over each word's set bits, and with AVX-512's compress where
     the machine has it (the kernels then use it)"""
     from clothsim.solver.colliders.meshgrid import INSIDE_BITS, NEAR
@@ -123,7 +125,10 @@ def test_the_walks_list_the_busy_flagged_points(closed):
                 flags = need.copy()
                 listed = np.full(n, -9, dtype=np.int64)
                 count = walk(flags, cell, (items, s0, closed), listed)
-                np.testing.assert_array_equal(flags, busy)
                 np.testing.assert_array_equal(listed[:count], np.flatnonzero(busy))
+                # every listed point keeps its flag; an unlisted one may keep it (the
+                # kernels read the flags through the list), but only if it had one
+                assert flags[busy].all()
+                np.testing.assert_array_equal(flags & ~need, False)
             if share == 1.0 and n > 60:
                 assert busy.any()  # some cells are busy

@@ -301,6 +301,67 @@ def flagged_lanes(typingctx, flags, at, dst, end):
     return sig, codegen
 
 
+@intrinsic
+def kept_lanes(typingctx, listed, at, cell, status, s0, keep, dst, end):
+    """The entries q of ``listed[at:at + FLAGS8]`` (int64) whose cell ``cell[q]``
+    (int32; negative for none) is none, or whose cell's status entry
+    ``status[s0 + cell[q]]`` (int32) has a bit of ``keep`` set, in order, written
+    from ``dst[end]`` (int64) by AVX-512's compress; the rest of ``dst[end:end +
+    FLAGS8]`` is overwritten with zeros. Returns how many (int64). The cells and
+    the status entries are read by two gathers, eight lanes at once: the loop
+    that reads them one by one and appends each point was the slowest part of
+    a mesh collider's first pass (docs/performance.md). ``dst`` may be
+    ``listed`` itself with ``end <= at``: the lanes are read before the store.
+    Nothing is bounds-checked: every ``q`` must index ``cell`` and every
+    ``s0 + max(cell[q], 0)`` index ``status``. Only where :func:`has_compress`."""
+    ints = (types.int64, types.int32)
+    if not all(isinstance(a, types.Array) and a.ndim == 1 and a.layout == "C" and a.dtype == d
+               for a, d in ((listed, ints[0]), (cell, ints[1]), (status, ints[1]), (dst, ints[0]))):
+        raise TypingError("kept_lanes takes contiguous int64 listed and dst, int32 cell and status arrays")
+    sig = types.int64(listed, at, cell, status, s0, keep, dst, end)
+
+    def codegen(context, builder, signature, args):
+        listed_v, at_v, cell_v, status_v, s0_v, keep_v, dst_v, end_v = args
+        listed_t, at_t, cell_t, status_t, s0_t, keep_t, dst_t, end_t = signature.args
+        at_v = context.cast(builder, at_v, at_t, types.intp)
+        end_v = context.cast(builder, end_v, end_t, types.intp)
+        s0_v = context.cast(builder, s0_v, s0_t, types.int64)
+        keep_v = builder.trunc(context.cast(builder, keep_v, keep_t, types.int64), ir.IntType(32))
+        i32, i64 = ir.IntType(32), ir.IntType(64)
+        v32, v64 = ir.VectorType(i32, FLAGS8), ir.VectorType(i64, FLAGS8)
+        bits = ir.VectorType(ir.IntType(1), FLAGS8)
+        q = builder.load(_vector_at(context, builder, listed_t, listed_v, [at_v], v64), align=8)
+        cells = _gather32(context, builder, cell_t, cell_v, q)
+        none = builder.icmp_signed("<", cells, ir.Constant(v32, None))
+        at_cell = builder.select(none, ir.Constant(v32, None), cells)
+        index = builder.add(_splat(builder, s0_v, v64), builder.sext(at_cell, v64))
+        st = _gather32(context, builder, status_t, status_v, index)
+        held = builder.icmp_unsigned("!=", builder.and_(st, _splat(builder, keep_v, v32)), ir.Constant(v32, None))
+        chosen = builder.or_(none, held)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(v64, [v64, v64, bits]),
+                                            "llvm.x86.avx512.mask.compress.v8i64")
+        packed = builder.call(fn, [q, ir.Constant(v64, None), chosen])
+        builder.store(packed, _vector_at(context, builder, dst_t, dst_v, [end_v], v64), align=8)
+        return builder.zext(builder.ctpop(builder.bitcast(chosen, ir.IntType(FLAGS8))), i64)
+
+    return sig, codegen
+
+
+def _gather32(context, builder, array_type, array, index):
+    """``array[index]`` for an int32 array and a vector of FLAGS8 int64 indices, by
+    LLVM's masked gather with every lane on"""
+    i32, i64 = ir.IntType(32), ir.IntType(64)
+    v32, v64 = ir.VectorType(i32, FLAGS8), ir.VectorType(i64, FLAGS8)
+    bits = ir.VectorType(ir.IntType(1), FLAGS8)
+    a = context.make_array(array_type)(context, builder, array)
+    base = _splat(builder, builder.ptrtoint(a.data, i64), v64)
+    where = builder.inttoptr(builder.add(base, builder.shl(index, ir.Constant(v64, [2] * FLAGS8))),
+                             ir.VectorType(i32.as_pointer(), FLAGS8))
+    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(v32, [where.type, i32, bits, v32]),
+                                        "llvm.masked.gather.v8i32.v8p0")
+    return builder.call(fn, [where, ir.Constant(i32, 4), ir.Constant(bits, [1] * FLAGS8), ir.Constant(v32, None)])
+
+
 BYTES64 = 64
 """the labels :func:`count_equal` compares at once: one 512-bit vector of bytes"""
 

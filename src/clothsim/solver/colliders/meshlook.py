@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from ..shared import EXACT_OPTIONS, pop_lowest
-from ..simd import FLAGS8, flagged_lanes, has_compress
+from ..simd import FLAGS8, flagged_lanes, has_compress, kept_lanes
 from .meshgrid import INSIDE_BITS, NEAR
 from .meshpose import is_rest
 from .meshpose import to_rest as _to_rest
@@ -63,9 +63,11 @@ def _flag(q, segment, here, bounds, need, cell):
 @njit(**EXACT_OPTIONS)
 def look(P, L, free, lo, frames, G, limits, items, need, listed):
     """The kernels' vector pass over points ``lo:lo + len(need)`` for one mesh in the
-    poses ``frames`` (before, now; :func:`.meshpose.frame`): ``need`` set for the points that the
-    per-point loop must look at, their numbers (from 0 at ``lo``, ascending) in the first
-    entries of ``listed`` (as long as ``need``), and their count. The rest are pinned, not finite,
+    poses ``frames`` (before, now; :func:`.meshpose.frame`): the numbers of the points that the
+    per-point loop must look at (from 0 at ``lo``, ascending) in the first entries of
+    ``listed`` (as long as ``need``), ``need`` set for each of them, and their count (the
+    kernels read ``need`` only through ``listed``: a point not listed may keep its flag,
+    see :func:`_walk_compressed`). The rest are pinned, not finite,
     with a segment whose box misses the mesh's box grown by the reach, or
     (as :func:`.mesh._clear` says) with a segment shorter than ``short`` on every axis that ends in a
     cell without NEAR (and, for a closed mesh, whose centre is not inside), or, where
@@ -135,8 +137,13 @@ def _walk_words(need, cell, status, listed):
 def _walk_compressed(need, cell, status, listed):
     """:func:`_walk_words` with AVX-512's compress: the flagged points listed first,
     eight flags at a time and no branch (the walk over a word's bits mispredicted
-    its end for most words), then their status entries read in one loop that keeps
-    those still in question. The same flags, list and count."""
+    its end for most words), then their cells and status entries read eight at a
+    time by two gathers, and those still in question kept by a second compress
+    (:func:`..simd.kept_lanes`; read one by one, with each point appended,
+    they took nearly half the look's time: docs/performance.md). The same list
+    and count; the flags of the
+    points it drops are left set, where :func:`_walk_words` clears them: the
+    kernels read the flags only through the list."""
     items, s0, closed = status
     n = need.shape[0]
     flagged = 0
@@ -147,15 +154,18 @@ def _walk_compressed(need, cell, status, listed):
     for q in range(whole, n):
         listed[flagged] = q
         flagged += np.int64(need[q])
+    keep = NEAR | (INSIDE_BITS if closed else 0)
     count = 0
-    for i in range(flagged):
+    whole = flagged // FLAGS8 * FLAGS8
+    for i in range(0, whole, FLAGS8):
+        # writes listed[count:count + 8] after reading listed[i:i + 8], count <= i
+        count += kept_lanes(listed, i, cell, items, s0, keep, listed, count)
+    for i in range(whole, flagged):
         q = listed[i]
         c = cell[q]
         st = items[np.uint64(s0 + (c if c > 0 else 0))]
-        busy = (c < 0) | ((st & NEAR) != 0) | (closed & ((st & INSIDE_BITS) != 0))
-        need[q] = busy
         listed[count] = q
-        count += np.int64(busy)
+        count += np.int64((c < 0) | ((st & keep) != 0))
     return count
 
 
