@@ -66,7 +66,7 @@ from .meshpose import frame as _frame
 from .meshpose import is_rest
 from .meshpose import to_rest as _to_rest
 from .meshpose import to_world as _to_world
-from .meshslab import clear_side, pack_meshes
+from .meshslab import clear_side, clear_sides, pack_meshes
 
 POSE_FIELDS = 26
 """a pose row: R_now (9), o_now (3), R_before (9), o_before (3), friction, margin"""
@@ -474,6 +474,7 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
     hi = min(hi, P.shape[1], L.shape[1], free.shape[0])
     need = np.empty(max(hi - lo, 0), dtype=np.bool_)
     listed = np.empty(need.shape[0], dtype=np.int64)
+    masks = np.empty((need.shape[0] + 63) // 64, dtype=np.uint64)
     for k in range(min(meshes.shape[1], grid.shape[0])):
         m = _pose(meshes, grid, s, k)
         if m.shape[0] == 0:
@@ -491,12 +492,16 @@ def _collide_meshes(P, L, free, meshes, control, lo, hi, s):
         count = look(P, L, free, lo, (before, now), G, (reach, short, closed, False), items, need, listed)
         if count == 0:
             continue
-        hint_pass(P, L, (prisms, hints, k, first, last, hinted, closed), (before, now), G,
-                  (margin, keep, True), lo, (need, listed[:count]))
+        left = hint_pass(P, L, (prisms, hints, k, first, last, hinted, closed), (before, now), G,
+                         (margin, keep, True), lo, (need, listed[:count]))
+        # the clear sides of the cells of the points left, tested in vector code first
+        clear_sides(listed, left, (L, P, lo), (before, now), (items, slabs, G), closed, masks)
         plain = is_rest(before) and is_rest(now)
-        for i in range(count):
+        for i in range(left):
             p = lo + listed[i]
-            if not need[p - lo]:
+            if (masks[i >> 6] >> np.uint64(i & 63)) & np.uint64(1):
+                if p < hinted:
+                    hints[k, p] = -1  # a hint that could not tell: see the module's docstring
                 continue
             # the look listed the point, so its segment is finite, meets the mesh's box
             # and does not end quietly (what _clear tests): those tests are not made
@@ -582,12 +587,10 @@ def _settle_meshes(P, Q, free, meshes, control, lo, hi, s):
         if count == 0:
             continue
         # no friction: the placement is the surface point, as below
-        hint_pass(P, Q, (prisms, hints, k, first, last, hinted, closed), (now, now), G,
-                  (margin, 1.0, False), lo, (need, listed[:count]))
-        for i in range(count):
+        left = hint_pass(P, Q, (prisms, hints, k, first, last, hinted, closed), (now, now), G,
+                         (margin, 1.0, False), lo, (need, listed[:count]))
+        for i in range(left):
             p = lo + listed[i]
-            if not need[p - lo]:
-                continue
             px, py, pz = P[0, p], P[1, p], P[2, p]
             qx, qy, qz = Q[0, p], Q[1, p], Q[2, p]
             x0, y0, z0 = _to_rest(now, qx, qy, qz)

@@ -213,9 +213,11 @@ def _gather(S, P, L, prisms, hints, k, which, lo, tri):
 @njit(**EXACT_OPTIONS)
 def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     """The points that ``marks`` (need, listed) lists (``lo`` + each number of
-    ``listed``, ascending, each in 0..len(need) - 1 with ``need`` set) and that have a hint, all
-    decided by it (:func:`_decide`) before any search: a placed one written to ``P``,
-    and ``need`` cleared for every point it decided. ``mesh``: (prisms, hints, k, first,
+    ``listed``, ascending, each in 0..len(need) - 1) and that have a hint, all
+    decided by it (:func:`_decide`) before any search: a placed one written to ``P``.
+    Returns how many points are left to the search, their numbers moved to the front
+    of ``listed``: those without a hint, in their order, then those whose prism could
+    not tell (``need`` is not written: the kernels' loops take that list). ``mesh``: (prisms, hints, k, first,
     last, hinted, closed): ``mesh_prisms`` and the hints, the mesh's number, the rows
     holding its triangles (a hint outside them is not tried), the points that keep
     hints (below ``hinted``) and the closed flag; ``frames`` (before, now) as for
@@ -224,20 +226,23 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
     the copy reads whole rows."""
     prisms, hints, k, first, last, hinted, closed = mesh
     need, listed = marks
+    count = listed.shape[0]
     n = min(need.shape[0], max(hinted - lo, 0))  # the points below keep hints
     if first >= last or n <= 0 or prisms.shape[1] < ROW_FIELDS:
-        return
-    which = np.empty(listed.shape[0] + PAD, dtype=np.int64)
+        return count
+    which = np.empty(count + PAD, dtype=np.int64)
     m = 0
-    for i in range(listed.shape[0]):
+    left = 0  # the points without a hint, moved up in listed (left <= i)
+    for i in range(count):
         q = listed[i]
-        if q >= n:  # listed in ascending order: the rest keep no hints either
-            break
-        h = hints[k, lo + q]
+        h = hints[k, lo + min(q, n - 1)]
+        has = (q < n) & (h >= first) & (h < last)
         which[m] = q
-        m += np.int64((h >= first) & (h < last))
+        m += np.int64(has)
+        listed[left] = q
+        left += np.int64(has ^ True)
     if m == 0:
-        return
+        return left
     which[m:m + PAD] = which[m - 1]  # the last block's padding: its last point again
     still = is_rest(frames[0]) and is_rest(frames[1])
     S = np.empty(S_ROWS * BLOCK)
@@ -259,4 +264,6 @@ def hint_pass(P, L, mesh, frames, G, placing, lo, marks):
             P[0, p] = O[_at(O_X, j)] if placed else P[0, p]
             P[1, p] = O[_at(O_X + 1, j)] if placed else P[1, p]
             P[2, p] = O[_at(O_X + 2, j)] if placed else P[2, p]
-            need[q] = route == 0.0
+            listed[left] = q  # kept where the prism could not tell: the search's
+            left += np.int64(route == 0.0)
+    return left

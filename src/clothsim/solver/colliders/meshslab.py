@@ -30,6 +30,7 @@ from numba import njit
 from ..shared import EXACT_OPTIONS
 from .meshgrid import (CELL_PAD, G_CELL0, G_CLOSED, G_DIMS, G_H, G_HI, G_INV_H, G_ORIGIN, G_STATUS0, HOLDS,
                        INSIDE_BITS, T_NORMAL, _ray_x_crossing, cell_coord, pack_grids)
+from .meshpose import to_rest
 from .meshprism import pack_prisms
 
 SLAB_SHIFT = 4
@@ -88,6 +89,62 @@ def clear_side(items, slabs, G, x0, y0, z0, x1, y1, z1, closed):
     return _cells_hold(items, slabs, s0, (inx, iny),
                        (min(ax, bx), max(ax, bx), min(ay, by), max(ay, by), min(az, bz), max(az, bz)),
                        (x0, y0, z0, x1, y1, z1))
+
+
+@njit(**EXACT_OPTIONS)
+def clear_sides(todo, count, ends, frames, grid, closed, masks):
+    """:func:`clear_side` for the segments of points ``lo + todo[:count]`` that lie in one
+    cell: bit j of ``masks[w]`` (uint64) is set where that of ``todo[64 w + j]``
+    does and :func:`clear_side` finds it clear; a segment that meets more than one
+    cell is left unset, for :func:`clear_side` itself. ``ends``: (L, P, lo), the
+    segments' starts and ends (3, N) [m, world]; ``frames``: the mesh's poses (before,
+    now; :func:`.meshpose.frame`); ``grid``: (items, slabs, G) as :func:`clear_side`
+    takes them. The same tests in the same arithmetic, made for every point without a
+    branch and or-ed into a word, sixty-four points a word, so that LLVM turns the
+    loop into vector code that gathers the points, their status entries and slab
+    rows (one by one in the kernels' loop, the test cost a third of it for the
+    points hovering near a mesh: docs/performance.md). The turns into the rest
+    frame are made for a mesh in its rest pose too: they change no comparison."""
+    L, P, lo = ends
+    before, now = frames
+    items, slabs, G = grid
+    ox, oy, oz, _, _, _, _, inv, nx, ny, nz, _, s0f, _ = G
+    inx, iny, s0 = np.int64(nx), np.int64(ny), np.int64(s0f)
+    rows = slabs.shape[0]
+    if rows == 0:  # no cell has a clear side: clear_side decides every segment
+        masks[:(count + 63) // 64] = 0
+        return
+    for w in range((count + 63) // 64):
+        mask = np.uint64(0)
+        for j in range(min(64, count - 64 * w)):
+            # unsigned indices: no wrap-around selects in the vector code
+            p = np.uint64(lo + todo[np.uint64(64 * w + j)])
+            x0, y0, z0 = to_rest(before, L[0, p], L[1, p], L[2, p])
+            x1, y1, z1 = to_rest(now, P[0, p], P[1, p], P[2, p])
+            fx0, fy0, fz0 = (x0 - ox) * inv, (y0 - oy) * inv, (z0 - oz) * inv
+            fx1, fy1, fz1 = (x1 - ox) * inv, (y1 - oy) * inv, (z1 - oz) * inv
+            # _strict_cell's test for all six, each cell then read where it passes
+            inside = ((fx0 >= 0.0) & (fx0 < nx) & (fy0 >= 0.0) & (fy0 < ny) & (fz0 >= 0.0) & (fz0 < nz)
+                      & (fx1 >= 0.0) & (fx1 < nx) & (fy1 >= 0.0) & (fy1 < ny) & (fz1 >= 0.0) & (fz1 < nz))
+            ax, ay, az = _whole(fx0, inside), _whole(fy0, inside), _whole(fz0, inside)
+            bx, by, bz = _whole(fx1, inside), _whole(fy1, inside), _whole(fz1, inside)
+            st = items[np.uint64(s0 + (bz * iny + by) * inx + bx)]
+            r = np.int64(st >> SLAB_SHIFT)
+            solid = closed & (r == 0) & ((st & INSIDE_BITS) != 0)
+            k = np.uint64(min(max(r - 1, 0), rows - 1))  # any row where there is none: not used
+            a, b, c, h = slabs[k, 0], slabs[k, 1], slabs[k, 2], slabs[k, 3]
+            holds = (((r == 0) & ((st & HOLDS) == 0))
+                     | ((r > 0) & (r <= rows) & (a * x0 + b * y0 + c * z0 >= h) & (a * x1 + b * y1 + c * z1 >= h)))
+            one = (ax == bx) & (ay == by) & (az == bz)
+            clear = inside & one & (solid ^ True) & holds
+            mask |= np.uint64(1 if clear else 0) << np.uint64(j)
+        masks[w] = mask
+
+
+@njit(**EXACT_OPTIONS, inline="always")
+def _whole(f, inside):
+    """the cell number of a coordinate's grid position ``f`` that lies in the grid, or 0"""
+    return np.int64(f if inside else 0.0)
 
 
 @njit(**EXACT_OPTIONS)
