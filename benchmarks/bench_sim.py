@@ -92,10 +92,25 @@ def run_once(scene: str, n: int, seconds: float, self_collision: bool = True, sp
         sim.params.enable_structural = sim.params.enable_shearing = sim.params.enable_bending = False
     frames = max(1, round(seconds * sim.params.frames_per_sec))
     start = time.perf_counter()
-    for _ in range(frames):
-        sim.step()
+    advance(sim, frames)
     substeps = frames * sim.params.simulation_steps
     return substeps / (time.perf_counter() - start), 100.0 * sim.neighbour_list_rebuilds / substeps
+
+
+FRAME_BY_FRAME = False
+"""``--frame-by-frame``: each run calls ``Simulation.step`` once a frame (one
+compiled call a frame, as the viewer steps), where by default it calls
+``step_frames`` for the whole run, as ``Simulation.run`` and ``clothsim
+simulate`` do: several frames to a compiled call where the world holds still"""
+
+
+def advance(sim: Simulation, frames: int) -> None:
+    """``frames`` frames of ``sim``, as FRAME_BY_FRAME says"""
+    if FRAME_BY_FRAME:
+        for _ in range(frames):
+            sim.step()
+    else:
+        sim.step_frames(frames)
 
 
 def measure(scene: str, n: int, seconds: float, self_collision: bool, repeats: int,
@@ -183,8 +198,7 @@ def timed(sim: Simulation, seconds: float) -> float:
     sim.step(substeps=0)
     frames = max(1, round(seconds * sim.params.frames_per_sec))
     start = time.perf_counter()
-    for _ in range(frames):
-        sim.step()
+    advance(sim, frames)
     return frames * sim.params.simulation_steps / (time.perf_counter() - start)
 
 
@@ -307,8 +321,13 @@ def main() -> None:
     ap.add_argument("--mesh-points", type=int, default=10000)
     ap.add_argument("--against-soa", nargs="?", const=str(SOA_DEFAULT), default=None, metavar="SOURCE",
                     help="time the 50x50 scenes against the C yardstick soa.c instead")
+    ap.add_argument("--frame-by-frame", action="store_true",
+                    help="one compiled call a frame (Simulation.step), not several (Simulation.step_frames)")
     args = ap.parse_args()
+    global FRAME_BY_FRAME
+    FRAME_BY_FRAME = args.frame_by_frame
     info = machine()
+    info = {**info, "frames_a_call": "one" if FRAME_BY_FRAME else "step_frames"}
     if args.against_soa is not None:
         against_soa(Path(args.against_soa), args.scenes.split(","), args.repeats, info)
         return

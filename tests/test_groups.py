@@ -28,14 +28,15 @@ from numba.core.dispatcher import Dispatcher
 
 import clothsim
 import clothsim.solver
-from clothsim.solver.groups import Control, Knobs, MeshKnobs, Points, Scratch
+from clothsim.solver.groups import Control, FrameRun, Knobs, MeshKnobs, Points, Scratch
 from clothsim.solver.mesh_pulls import MeshPulls
 from clothsim.solver.meshsprings import MeshSprings
 from clothsim.solver.selfcollide.buffers import NeighbourList
 from clothsim.solver.springs import GridSprings
 
 GROUPS = {"springs": GridSprings, "knobs": Knobs, "points": Points, "control": Control, "scratch": Scratch,
-          "lists": NeighbourList, "mesh_springs": MeshSprings, "mesh_knobs": MeshKnobs, "mesh_pulls": MeshPulls}
+          "lists": NeighbourList, "mesh_springs": MeshSprings, "mesh_knobs": MeshKnobs, "mesh_pulls": MeshPulls,
+          "frame_run": FrameRun}
 """the parameter name each group goes by in every kernel that takes it"""
 
 MAX_PARAMETERS = 10

@@ -379,6 +379,73 @@ def test_a_blow_up_stops_with_an_error_naming_frame_and_parameters(path):
     assert sim.frame < 180
 
 
+def _bits(a):
+    return np.ascontiguousarray(a).view(np.int64)
+
+
+def _counted_calls(sim: Simulation) -> list[int]:
+    """the frames of each compiled call the solver of ``sim`` makes from now on"""
+    calls, real = [], sim.solver.step_frames
+
+    def counted(state, control, params, substeps, frames, *rest):
+        calls.append(frames)
+        return real(state, control, params, substeps, frames, *rest)
+
+    sim.solver.step_frames = counted
+    return calls
+
+
+def test_many_frames_in_one_call_end_where_frame_by_frame_ends(path, monkeypatch):
+    """where the world holds still, step_frames (and run) take several frames to a
+    compiled call; the cloth, its last positions, the neighbour list's builds
+    and the clock then end as the same frames stepped one by one leave them,
+    to the bit, across the calls' seams"""
+    import clothsim.simulation
+
+    a = scene_sim(path, "selfCollision.json")
+    b = scene_sim(path, "selfCollision.json")
+    monkeypatch.setattr(clothsim.simulation, "FRAME_CALL_WORK", 10 * b.model.num_points * b.params.simulation_steps)
+    calls = _counted_calls(b)
+    for _ in range(27):
+        a.step()
+    b.step_frames(27)
+    assert calls == [10, 10, 7]
+    assert np.array_equal(_bits(a.positions), _bits(b.positions))
+    assert np.array_equal(_bits(a.state.last_positions), _bits(b.state.last_positions))
+    assert (a.frame, a.time, a.neighbour_list_rebuilds) == (b.frame, b.time, b.neighbour_list_rebuilds)
+    assert a.neighbour_list_rebuilds > 0
+
+
+def test_a_blow_up_inside_a_call_of_many_frames_stops_at_its_frame(path):
+    """the blow-up test is made after every frame of a call: the error, the frame and
+    the positions are those of stepping frame by frame"""
+    bad = ["cloth.ks=1e9", "simulation.simulation_steps=2"]
+    a, b = scene_sim(path, "pinned2.json", bad), scene_sim(path, "pinned2.json", bad)
+    with pytest.raises(SimulationError) as by_frame:
+        for _ in range(180):
+            a.step()
+    calls = _counted_calls(b)
+    with pytest.raises(SimulationError) as in_one:
+        b.step_frames(180)
+    assert calls == [180] and str(in_one.value) == str(by_frame.value)
+    assert a.frame == b.frame < 180
+    assert np.array_equal(_bits(a.positions), _bits(b.positions))
+
+
+def test_a_moving_world_takes_a_frame_a_call(path):
+    """an animated collider's poses are made for each frame: step_frames then calls the
+    solver once a frame, and ends where step does"""
+    a = scene_sim(path, "spinning_sphere.json")
+    b = scene_sim(path, "spinning_sphere.json")
+    assert not b.holds_still()
+    calls = _counted_calls(b)
+    for _ in range(4):
+        a.step()
+    b.step_frames(4)
+    assert calls == [1, 1, 1, 1]
+    assert np.array_equal(_bits(a.positions), _bits(b.positions))
+
+
 # ---------------------------------------------------------------- the portable path
 
 def path_tests() -> list[str]:

@@ -96,6 +96,21 @@ def test_run_frames_counts_up_to_the_bound_and_no_further():
         run_frames((RUN_FRAMES_MAX + 1) / 100.0, 100.0)
 
 
+@pytest.mark.parametrize("frames", [-1, 1.5, float("nan"), True, 10_000_001, 10**30])
+def test_step_frames_refuses_a_count_that_is_not_a_whole_bounded_one(frames):
+    """as step's substeps: ValueError naming frames, and nothing moves"""
+    sim = sim_of()
+    start = sim.positions.copy()
+    with pytest.raises(ValueError, match="frames"):
+        sim.step_frames(frames)
+    assert sim.frame == 0 and sim.time == 0.0
+    np.testing.assert_array_equal(sim.positions, start)
+    sim.step_frames(0)
+    assert sim.frame == 0
+    sim.step_frames(np.int64(2))
+    assert sim.frame == 2 and sim.time == pytest.approx(2 * sim.params.simulation_steps * sim.params.dt)
+
+
 @pytest.mark.parametrize("substeps", [-1, 1.5, float("nan"), True, 100_001, 10**30])
 def test_step_refuses_substeps_that_are_not_a_whole_bounded_count(substeps):
     """a negative count ran the clock backwards, a float reached the kernel;

@@ -14,7 +14,7 @@ from .mesh import compute_normals
 from .model import Cloth, Model, build_scene_model
 from .params import Material, Params
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
-from .scene_limits import STEPS_MAX, run_frames
+from .scene_limits import RUN_FRAMES_MAX, STEPS_MAX, run_frames
 from .solver import ClothSolver, Control
 from .solver.control import make_control
 from .solver.cloth_solver import RUNAWAY_FACTOR
@@ -23,6 +23,12 @@ from .world import Handle, pin_handles, scene_handles
 from .world_spec import BoxSpec, MeshColliderSpec, WindSpec
 
 __all__ = ["ClothView", "Material", "Params", "Simulation", "State"]
+
+FRAME_CALL_WORK = 5_000_000
+"""point-substeps (points times substeps) a compiled call of :meth:`Simulation.step_frames`
+takes at most: some 66 frames of a 50x50 cloth at 30 substeps a frame, 4 of a
+200x200 one; a call's return to Python costs about what two or three of a
+50x50 cloth's substeps do, so this many leave it a few thousandths of the run"""
 
 
 @dataclass(frozen=True)
@@ -221,6 +227,51 @@ class Simulation:
         self.state.frame += 1 if substeps is None else 0
         self.state.time += n * p.dt
         self._normals = None
+        self._check_runaway(far2)
+
+    def step_frames(self, frames: int) -> None:
+        """Advance ``frames`` whole frames (a whole number from 0 to
+        :data:`~clothsim.scene_limits.RUN_FRAMES_MAX`), as that many calls of
+        :meth:`step` would: the same positions to the bit, and a blow-up raised
+        at the frame it happens. Where the world holds still (:meth:`holds_still`),
+        up to :attr:`frames_per_call` frames run in one compiled call, which
+        spares each frame's return to Python and the caches it cools (figures:
+        docs/performance.md, 'Frames in one call'); elsewhere one frame a call."""
+        if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) \
+                or not 0 <= frames <= RUN_FRAMES_MAX:
+            raise ValueError(f"frames: expected a whole number from 0 to {RUN_FRAMES_MAX:,}, got {frames!r}")
+        p = self.params
+        n = p.simulation_steps
+        left = int(frames)
+        while left > 0:
+            many = min(left, self.frames_per_call) if self.holds_still() else 1
+            far2, done = self.solver.step_frames(self.state, self._control(n), p, n, many, self.solver.runaway2)
+            for _ in range(done):  # as step() adds them, frame by frame
+                self.state.frame += 1
+                self.state.time += n * p.dt
+            self._normals = None
+            self._check_runaway(far2)
+            left -= done
+
+    @property
+    def frames_per_call(self) -> int:
+        """the most frames :meth:`step_frames` runs in one compiled call: about
+        FRAME_CALL_WORK point-substeps, so that a call stays short enough for
+        a progress bar and Ctrl-C to answer between calls"""
+        return max(1, FRAME_CALL_WORK // max(1, self.model.num_points * self.params.simulation_steps))
+
+    def holds_still(self) -> bool:
+        """Whether the world imposes the same on every frame: no collider animated
+        (or only by keys that never move it), no handles and no wind (its gusts
+        change with time). Then one control serves many frames."""
+        movers = (*self.spheres, *self.planes, *self.boxes, *self.mesh_colliders)
+        return (not self.handles and self.wind is None
+                and all(getattr(c, "animation", None) is None or c.animation.is_still for c in movers))
+
+    def _check_runaway(self, far2: float) -> None:
+        """SimulationError unless the largest squared distance ``far2`` [m²] of a point
+        from the start is finite and within the runaway limit"""
+        p = self.params
         if not (np.isfinite(far2) and far2 <= self.solver.runaway2):  # holds where the limit is inf too
             what = "is no longer finite" if not np.isfinite(far2) else (
                 f"has a point {np.sqrt(far2):.3g} m from the start, more than "
@@ -235,10 +286,12 @@ class Simulation:
         ValueError, before any step, unless a finite number >= 0 of at most
         :data:`~clothsim.scene_limits.RUN_FRAMES_MAX` frames); return the frame count."""
         frames = run_frames(seconds, self.params.frames_per_sec)
+        if on_frame is None:
+            self.step_frames(frames)
+            return frames
         for _ in range(frames):
             self.step()
-            if on_frame is not None:
-                on_frame(self)
+            on_frame(self)
         return frames
 
     def export_obj(self, path: str | Path, overwrite: bool = True) -> None:

@@ -10,7 +10,7 @@ from ..params import Params
 from ..state import State
 from . import prewarm
 from .colliders import KINDS
-from .groups import Control, Knobs, MeshKnobs, Points, Scratch
+from .groups import Control, FrameRun, Knobs, MeshKnobs, Points, Scratch
 from .mesh_pulls import build_mesh_pulls, rows_buffer
 from .meshsprings import build_mesh_springs
 from .meshstep import advance_mesh, advance_mesh_parallel
@@ -178,16 +178,26 @@ class ClothSolver:
     def step(self, state: State, control: Control, params: Params, substeps: int) -> float:
         """Advance ``state`` by ``substeps`` substeps of ``params.dt`` in place; returns the
         largest squared distance of a point from the start [m²] (inf when not finite)."""
+        return self.step_frames(state, control, params, substeps, 1)[0]
+
+    def step_frames(self, state: State, control: Control, params: Params, substeps: int, frames: int,
+                    limit2: float = np.inf) -> tuple[float, int]:
+        """Advance ``state`` in place by up to ``frames`` frames of ``substeps`` substeps
+        each, all on ``control`` (a world that holds still), in one compiled call that
+        stops after the first frame leaving a point farther than sqrt(``limit2``) [m]
+        from the start or not finite. Returns (that frame's largest squared distance
+        [m²], inf when not finite; the frames run)."""
         springs = (self.springs,) if self.path == "grid" else (self.springs, self.pulls)
-        far2, pairs = self._advance(state.positions, state.last_positions, self.points, *springs,
-                                    self.knobs(params), control, self.lists, self.lists.pairs, self.scratch,
-                                    substeps)
+        frame_run = FrameRun(substeps=int(substeps), frames=int(frames), limit2=float(limit2))
+        far2, pairs, done = self._advance(state.positions, state.last_positions, self.points, *springs,
+                                          self.knobs(params), control, self.lists, self.lists.pairs,
+                                          self.scratch, frame_run)
         self.lists = self.lists._replace(pairs=pairs)
         variant = self.variant(control, params)
         if variant not in self._warm:
             self._warm.add(variant)
             kernel_cache.mark_warm(variant)
-        return far2
+        return far2, done
 
     @property
     def rebuilds(self) -> int:

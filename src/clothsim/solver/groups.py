@@ -125,6 +125,21 @@ class Control(NamedTuple):
     """the wind's row: see :mod:`.wind`"""
 
 
+class FrameRun(NamedTuple):
+    """How far one compiled call of the substep runs: ``frames`` frames of
+    ``substeps`` substeps each, every frame on the same control (a world that
+    holds still), stopping after the first frame that leaves a point farther
+    than ``limit2`` from the cloth's centre or not finite. One call for many
+    frames spares each frame's return to Python (see :meth:`~clothsim.Simulation.step_frames`)."""
+
+    substeps: int
+    """substeps a frame (0: the call only loads the kernels)"""
+    frames: int
+    """frames the call runs, at least 1"""
+    limit2: float
+    """[m²] the squared distance from ``Points.center`` past which the run stops (inf: none)"""
+
+
 class Scratch(NamedTuple):
     """Buffers the substep reuses, allocated once per model."""
 

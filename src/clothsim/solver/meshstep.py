@@ -1,7 +1,8 @@
-"""One frame of substeps of the general path (spring lists), in a single compiled call."""
+"""Frames of substeps of the general path (spring lists) in a single compiled call."""
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit, prange
 
 from .colliders import collide, has_settle, settle, settle_needs_q
@@ -16,10 +17,10 @@ from .wind import blow
 
 
 def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, mesh_knobs, control, lists, pairs,
-                  scratch, substeps):
-    """Run ``substeps`` substeps on ``positions``/``last_positions`` (N, 3) [m] in place,
-    for a model of any cloths: the general path's twin of :func:`~.step._advance`,
-    with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`
+                  scratch, frame_run):
+    """Run the frames of ``frame_run`` (a :class:`~.groups.FrameRun`) on
+    ``positions``/``last_positions`` (N, 3) [m] in place, for a model of any
+    cloths: the general path's twin of :func:`~.step._advance`, with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`
     and ``mesh_pulls`` a :class:`~.mesh_pulls.MeshPulls` (the springs as lists
     for Provot and as each point's slots for the forces: a group inside
     another does not reach a prange body), ``mesh_knobs`` a
@@ -27,7 +28,8 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
     rows, which the springs' pass and Provot's test read the ends from.
 
     Returns (largest squared distance of a point from ``points.center``, inf
-    when not finite; the neighbour list's pairs array).
+    when not finite; the neighbour list's pairs array; the frames run), the
+    distance taken after every frame as :func:`~.step._advance` takes it.
 
     Order per substep as in :func:`~.step._advance`: forces and Verlet, the
     handles and the wind, self-collision, the colliders, the Provot pass and
@@ -56,38 +58,46 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
     W, Q = scratch.W, scratch.Q
     settling = has_settle(control)
     copying = settle_needs_q(control)
-    for s in range(substeps):
-        for t in prange(parts):
-            lo, hi = part_range(n, parts, t)
-            to_rows(P, R, lo, hi)
-        for t in prange(parts):
-            lo, hi = part_range(eights, parts, t)
-            pull_step(P, R, L, free, mesh_knobs, mesh_pulls, lo, hi)
-        P, L = L, P
-        if handle >= 0:
-            _hold(P, handle, handle_pos)
-        place_handles(P, control.moved_points, control.moved_to, s)
-        blow(P, L, points, mesh_knobs.inv_mass, mesh_knobs.dt2, control.wind, W, s)
-        if self_collision:
-            pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
-        for t in prange(parts):
-            lo, hi = part_range(n, parts, t)
-            collide(P, L, free, control, lo, hi, s)
-            if copying:
-                _copy_range(P, Q, lo, hi)
-            to_rows(P, R, lo, hi)  # a part's own springs join its own points
-            mesh_provot(P, R, mesh_springs, enabled, part_start[t], part_start[t + 1])
-        mesh_provot(P, R, mesh_springs, enabled, part_start[parts], part_start[parts + 1])
-        if settling:
+    substeps, frames, limit2 = frame_run.substeps, frame_run.frames, frame_run.limit2
+    far2 = 0.0
+    done = 0
+    while done < frames:
+        for s in range(substeps):
             for t in prange(parts):
                 lo, hi = part_range(n, parts, t)
-                settle(P, Q, L, free, control, lo, hi, s)
-        if handle >= 0:
-            _hold(P, handle, handle_pos)
-        place_handles(P, control.moved_points, control.moved_to, s)
+                to_rows(P, R, lo, hi)
+            for t in prange(parts):
+                lo, hi = part_range(eights, parts, t)
+                pull_step(P, R, L, free, mesh_knobs, mesh_pulls, lo, hi)
+            P, L = L, P
+            if handle >= 0:
+                _hold(P, handle, handle_pos)
+            place_handles(P, control.moved_points, control.moved_to, s)
+            blow(P, L, points, mesh_knobs.inv_mass, mesh_knobs.dt2, control.wind, W, s)
+            if self_collision:
+                pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
+            for t in prange(parts):
+                lo, hi = part_range(n, parts, t)
+                collide(P, L, free, control, lo, hi, s)
+                if copying:
+                    _copy_range(P, Q, lo, hi)
+                to_rows(P, R, lo, hi)  # a part's own springs join its own points
+                mesh_provot(P, R, mesh_springs, enabled, part_start[t], part_start[t + 1])
+            mesh_provot(P, R, mesh_springs, enabled, part_start[parts], part_start[parts + 1])
+            if settling:
+                for t in prange(parts):
+                    lo, hi = part_range(n, parts, t)
+                    settle(P, Q, L, free, control, lo, hi, s)
+            if handle >= 0:
+                _hold(P, handle, handle_pos)
+            place_handles(P, control.moved_points, control.moved_to, s)
+        far2 = _farthest(P, center)
+        done += 1
+        if far2 == np.inf or not far2 <= limit2:
+            break
     _from_planes(P, positions)
     _from_planes(L, last_positions)
-    return _farthest(P, center), pairs
+    return far2, pairs, done
 
 
 advance_mesh = njit(**ADVANCE_OPTIONS)(renamed(_advance_mesh, "advance_mesh"))

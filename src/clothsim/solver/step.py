@@ -1,4 +1,4 @@
-"""One frame of substeps in a single compiled call, and its order of stages."""
+"""Frames of substeps in a single compiled call, and the order of a substep's stages."""
 
 from __future__ import annotations
 
@@ -61,8 +61,9 @@ def _from_planes(P, pos):
             pos[p, c] = P[c, p]
 
 
-def _advance(positions, last_positions, points, springs, knobs, control, lists, pairs, scratch, substeps):
-    """Run ``substeps`` substeps on ``positions``/``last_positions`` (N, 3) [m] in place.
+def _advance(positions, last_positions, points, springs, knobs, control, lists, pairs, scratch, frame_run):
+    """Run the frames of ``frame_run`` (a :class:`~.groups.FrameRun`) on
+    ``positions``/``last_positions`` (N, 3) [m] in place.
 
     The groups: ``points`` (:class:`~.groups.Points`), ``springs``
     (:class:`~.springs.GridSprings`), ``knobs`` (:class:`~.groups.Knobs`),
@@ -72,7 +73,10 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
 
     Returns (largest squared distance of a point from ``points.center``
     afterwards, inf when the state is no longer finite; the pairs array of
-    the neighbour list, a new one after each build).
+    the neighbour list, a new one after each build; the frames run). The
+    distance is taken after every frame, and the call stops after the first
+    frame that puts it past ``frame_run.limit2`` (or makes it inf): a blow-up is
+    caught at the frame it happens, as one call a frame would catch it.
 
     Order per substep, as in the CS184 course code: forces and Verlet,
     self-collision, the colliders, then the Provot pass; clothsim's own stages
@@ -105,40 +109,48 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     W, Q = scratch.W, scratch.Q
     settling = has_settle(control)
     copying = settle_needs_q(control)
-    for s in range(substeps):
-        # a part's last springs reach into the next part's first points: those
-        # are moved only once every part has its forces
-        for t in prange(parts):
-            lo, hi = _chunk_range(n, parts, t)
-            integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + ahead, hi))
-        for t in range(1, parts):
-            lo, hi = _chunk_range(n, parts, t)
-            gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
-        if handle >= 0:
-            _hold(P, handle, handle_pos)
-        place_handles(P, control.moved_points, control.moved_to, s)
-        blow_grid(P, L, free, springs.valid[0], knobs.inv_mass, knobs.dt2, control.wind, W, s, cols)
-        if self_collision:
-            pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
-        for t in prange(parts):
-            lo, hi = _chunk_range(n, parts, t)
-            collide(P, L, free, control, lo, hi, s)
-            if copying:
-                _copy_range(P, Q, lo, hi)
-            provot(P, springs, enabled, masks[t], lo, hi, False)
-        for t in range(1, parts):
-            lo, _ = _chunk_range(n, parts, t)
-            provot(P, springs, enabled, masks[0], lo, lo, True)
-        if settling:
+    substeps, frames, limit2 = frame_run.substeps, frame_run.frames, frame_run.limit2
+    far2 = 0.0
+    done = 0
+    while done < frames:
+        for s in range(substeps):
+            # a part's last springs reach into the next part's first points: those
+            # are moved only once every part has its forces
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
-                settle(P, Q, L, free, control, lo, hi, s)
-        if handle >= 0:
-            _hold(P, handle, handle_pos)
-        place_handles(P, control.moved_points, control.moved_to, s)
+                integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + ahead, hi))
+            for t in range(1, parts):
+                lo, hi = _chunk_range(n, parts, t)
+                gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
+            if handle >= 0:
+                _hold(P, handle, handle_pos)
+            place_handles(P, control.moved_points, control.moved_to, s)
+            blow_grid(P, L, free, springs.valid[0], knobs.inv_mass, knobs.dt2, control.wind, W, s, cols)
+            if self_collision:
+                pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
+            for t in prange(parts):
+                lo, hi = _chunk_range(n, parts, t)
+                collide(P, L, free, control, lo, hi, s)
+                if copying:
+                    _copy_range(P, Q, lo, hi)
+                provot(P, springs, enabled, masks[t], lo, hi, False)
+            for t in range(1, parts):
+                lo, _ = _chunk_range(n, parts, t)
+                provot(P, springs, enabled, masks[0], lo, lo, True)
+            if settling:
+                for t in prange(parts):
+                    lo, hi = _chunk_range(n, parts, t)
+                    settle(P, Q, L, free, control, lo, hi, s)
+            if handle >= 0:
+                _hold(P, handle, handle_pos)
+            place_handles(P, control.moved_points, control.moved_to, s)
+        far2 = _farthest(P, center)
+        done += 1
+        if far2 == np.inf or not far2 <= limit2:
+            break
     _from_planes(P, positions)
     _from_planes(L, last_positions)
-    return _farthest(P, center), pairs
+    return far2, pairs, done
 
 
 ADVANCE_OPTIONS = dict(cache=True, boundscheck=False, error_model="numpy", nogil=True)
