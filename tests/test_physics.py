@@ -432,17 +432,38 @@ def test_a_blow_up_inside_a_call_of_many_frames_stops_at_its_frame(path):
     assert np.array_equal(_bits(a.positions), _bits(b.positions))
 
 
-def test_a_moving_world_takes_a_frame_a_call(path):
-    """an animated collider's poses are made for each frame: step_frames then calls the
-    solver once a frame, and ends where step does"""
-    a = scene_sim(path, "spinning_sphere.json")
-    b = scene_sim(path, "spinning_sphere.json")
+@pytest.mark.parametrize("scene", ["spinning_sphere.json", "curtain.json"])
+def test_a_moving_world_takes_many_frames_a_call_on_each_frames_control(path, scene, monkeypatch):
+    """an animated collider's or handle's poses are made for each frame, from the
+    time that frame starts at; step_frames stacks them, slot after slot, into
+    calls of many frames, and ends where step does, to the bit"""
+    import clothsim.simulation
+
+    a, b = scene_sim(path, scene), scene_sim(path, scene)
     assert not b.holds_still()
+    monkeypatch.setattr(clothsim.simulation, "FRAME_CALL_WORK", 4 * b.model.num_points * b.params.simulation_steps)
     calls = _counted_calls(b)
-    for _ in range(4):
+    for _ in range(10):
         a.step()
-    b.step_frames(4)
-    assert calls == [1, 1, 1, 1]
+    b.step_frames(10)
+    assert calls == [4, 4, 2]
+    assert np.array_equal(_bits(a.positions), _bits(b.positions))
+    assert np.array_equal(_bits(a.state.last_positions), _bits(b.state.last_positions))
+    assert (a.frame, a.time) == (b.frame, b.time)
+
+
+@pytest.mark.parametrize("scene, overrides", [("windy_flag.json", []),
+                                              ("spinning_sphere.json", ["simulation.simulation_steps=1"])],
+                         ids=["wind", "one substep a frame"])
+def test_wind_and_frames_of_one_substep_take_a_frame_a_call(path, scene, overrides):
+    """the wind's row is made for one frame, and a moving collider's frame of one
+    substep has two slots: those runs call the solver once a frame"""
+    a, b = scene_sim(path, scene, overrides), scene_sim(path, scene, overrides)
+    calls = _counted_calls(b)
+    for _ in range(3):
+        a.step()
+    b.step_frames(3)
+    assert calls == [1, 1, 1]
     assert np.array_equal(_bits(a.positions), _bits(b.positions))
 
 

@@ -16,7 +16,7 @@ from .params import Material, Params
 from .scene import PlaneSpec, Scene, SphereSpec, load_scene
 from .scene_limits import RUN_FRAMES_MAX, STEPS_MAX, run_frames
 from .solver import ClothSolver, Control
-from .solver.control import make_control
+from .solver.control import make_control, stack_frames
 from .solver.cloth_solver import RUNAWAY_FACTOR
 from .state import State
 from .world import Handle, pin_handles, scene_handles
@@ -197,9 +197,19 @@ class Simulation:
         handles and wind where they stand and move"""
         return self._control(self.params.simulation_steps)
 
-    def _control(self, substeps: int) -> Control:
-        return make_control(self._handle, self._handle_pos, self, self.state.time, self.params.dt, substeps,
-                            self._mesh_shapes)
+    def _control(self, substeps: int, t0: float | None = None) -> Control:
+        return make_control(self._handle, self._handle_pos, self, self.state.time if t0 is None else t0,
+                            self.params.dt, substeps, self._mesh_shapes)
+
+    def _frames_control(self, substeps: int, frames: int) -> Control:
+        """the control of the next ``frames`` frames: each frame's from the time that
+        frame starts at, as :meth:`step` would add it up, stacked"""
+        t, step = self.state.time, substeps * self.params.dt
+        controls = []
+        for _ in range(frames):
+            controls.append(self._control(substeps, t))
+            t += step
+        return stack_frames(controls)
 
     @property
     def kernels_compiled(self) -> bool:
@@ -233,10 +243,14 @@ class Simulation:
         """Advance ``frames`` whole frames (a whole number from 0 to
         :data:`~clothsim.scene_limits.RUN_FRAMES_MAX`), as that many calls of
         :meth:`step` would: the same positions to the bit, and a blow-up raised
-        at the frame it happens. Where the world holds still (:meth:`holds_still`),
-        up to :attr:`frames_per_call` frames run in one compiled call, which
-        spares each frame's return to Python and the caches it cools (figures:
-        docs/performance.md, 'Frames in one call'); elsewhere one frame a call."""
+        at the frame it happens. Up to :attr:`frames_per_call` frames run in
+        one compiled call, which spares each frame's return to Python and the
+        caches it cools (figures: docs/performance.md, 'Frames in one call'):
+        where the world holds still (:meth:`holds_still`) on one control, and
+        where colliders or handles move, on each frame's control made as
+        :meth:`step` makes it, their slots one frame after another
+        (:func:`~clothsim.solver.control.stack_frames`). Wind, whose row is
+        made for a frame, and frames of one substep take one frame a call."""
         if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) \
                 or not 0 <= frames <= RUN_FRAMES_MAX:
             raise ValueError(f"frames: expected a whole number from 0 to {RUN_FRAMES_MAX:,}, got {frames!r}")
@@ -244,8 +258,14 @@ class Simulation:
         n = p.simulation_steps
         left = int(frames)
         while left > 0:
-            many = min(left, self.frames_per_call) if self.holds_still() else 1
-            far2, done = self.solver.step_frames(self.state, self._control(n), p, n, many, self.solver.runaway2)
+            many = min(left, self.frames_per_call)
+            if self.holds_still():
+                control = self._control(n)
+            elif self.wind is None and n > 1:
+                control = self._frames_control(n, many)
+            else:
+                many, control = 1, self._control(n)
+            far2, done = self.solver.step_frames(self.state, control, p, n, many, self.solver.runaway2)
             for _ in range(done):  # as step() adds them, frame by frame
                 self.state.frame += 1
                 self.state.time += n * p.dt

@@ -85,7 +85,9 @@ class Control(NamedTuple):
     each frame (:func:`.control.make_control`) from the world as it stands and moves.
 
     A collider kind's rows are float64 (T, K, C): slot s is substep s of the
-    frame (T = 1 when nothing of the kind moves; see :mod:`.colliders.motion_rows`).
+    frame (T = 1 when nothing of the kind moves; see :mod:`.colliders.motion_rows`),
+    and in a control of several frames (:func:`.control.stack_frames`) slot
+    ``f * substeps + s`` is substep s of frame f.
     A field is None when the scene has none of it: numba then compiles nothing for it."""
 
     handle: int

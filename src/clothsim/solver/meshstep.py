@@ -63,6 +63,7 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
     done = 0
     while done < frames:
         for s in range(substeps):
+            slot = done * substeps + s  # the control's slot: frame after frame
             for t in prange(parts):
                 lo, hi = part_range(n, parts, t)
                 to_rows(P, R, lo, hi)
@@ -72,13 +73,13 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
             P, L = L, P
             if handle >= 0:
                 _hold(P, handle, handle_pos)
-            place_handles(P, control.moved_points, control.moved_to, s)
+            place_handles(P, control.moved_points, control.moved_to, slot)
             blow(P, L, points, mesh_knobs.inv_mass, mesh_knobs.dt2, control.wind, W, s)
             if self_collision:
                 pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
             for t in prange(parts):
                 lo, hi = part_range(n, parts, t)
-                collide(P, L, free, control, lo, hi, s)
+                collide(P, L, free, control, lo, hi, slot)
                 if copying:
                     _copy_range(P, Q, lo, hi)
                 to_rows(P, R, lo, hi)  # a part's own springs join its own points
@@ -87,10 +88,10 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
             if settling:
                 for t in prange(parts):
                     lo, hi = part_range(n, parts, t)
-                    settle(P, Q, L, free, control, lo, hi, s)
+                    settle(P, Q, L, free, control, lo, hi, slot)
             if handle >= 0:
                 _hold(P, handle, handle_pos)
-            place_handles(P, control.moved_points, control.moved_to, s)
+            place_handles(P, control.moved_points, control.moved_to, slot)
         far2 = _farthest(P, center)
         done += 1
         if far2 == np.inf or not far2 <= limit2:

@@ -114,6 +114,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     done = 0
     while done < frames:
         for s in range(substeps):
+            slot = done * substeps + s  # the control's slot: frame after frame
             # a part's last springs reach into the next part's first points: those
             # are moved only once every part has its forces
             for t in prange(parts):
@@ -124,13 +125,13 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
                 gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
             if handle >= 0:
                 _hold(P, handle, handle_pos)
-            place_handles(P, control.moved_points, control.moved_to, s)
+            place_handles(P, control.moved_points, control.moved_to, slot)
             blow_grid(P, L, free, springs.valid[0], knobs.inv_mass, knobs.dt2, control.wind, W, s, cols)
             if self_collision:
                 pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
-                collide(P, L, free, control, lo, hi, s)
+                collide(P, L, free, control, lo, hi, slot)
                 if copying:
                     _copy_range(P, Q, lo, hi)
                 provot(P, springs, enabled, masks[t], lo, hi, False)
@@ -140,10 +141,10 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
             if settling:
                 for t in prange(parts):
                     lo, hi = _chunk_range(n, parts, t)
-                    settle(P, Q, L, free, control, lo, hi, s)
+                    settle(P, Q, L, free, control, lo, hi, slot)
             if handle >= 0:
                 _hold(P, handle, handle_pos)
-            place_handles(P, control.moved_points, control.moved_to, s)
+            place_handles(P, control.moved_points, control.moved_to, slot)
         far2 = _farthest(P, center)
         done += 1
         if far2 == np.inf or not far2 <= limit2:
