@@ -395,24 +395,32 @@ def _counted_calls(sim: Simulation) -> list[int]:
     return calls
 
 
+def _both_ways(path, scene, frames, per_call, monkeypatch, overrides=()):
+    """(a, b, calls): ``scene`` run ``frames`` frames by ``step`` (a) and by
+    ``step_frames`` (b), at most ``per_call`` frames to a compiled call, with
+    the frames of each of b's calls; the two end the same to the bit"""
+    import clothsim.simulation
+
+    a, b = scene_sim(path, scene, overrides), scene_sim(path, scene, overrides)
+    work = per_call * b.model.num_points * b.params.simulation_steps
+    monkeypatch.setattr(clothsim.simulation, "FRAME_CALL_WORK", work)
+    calls = _counted_calls(b)
+    for _ in range(frames):
+        a.step()
+    b.step_frames(frames)
+    assert np.array_equal(_bits(a.positions), _bits(b.positions))
+    assert np.array_equal(_bits(a.state.last_positions), _bits(b.state.last_positions))
+    assert (a.frame, a.time, a.neighbour_list_rebuilds) == (b.frame, b.time, b.neighbour_list_rebuilds)
+    return a, b, calls
+
+
 def test_many_frames_in_one_call_end_where_frame_by_frame_ends(path, monkeypatch):
     """where the world holds still, step_frames (and run) take several frames to a
     compiled call; the cloth, its last positions, the neighbour list's builds
     and the clock then end as the same frames stepped one by one leave them,
     to the bit, across the calls' seams"""
-    import clothsim.simulation
-
-    a = scene_sim(path, "selfCollision.json")
-    b = scene_sim(path, "selfCollision.json")
-    monkeypatch.setattr(clothsim.simulation, "FRAME_CALL_WORK", 10 * b.model.num_points * b.params.simulation_steps)
-    calls = _counted_calls(b)
-    for _ in range(27):
-        a.step()
-    b.step_frames(27)
-    assert calls == [10, 10, 7]
-    assert np.array_equal(_bits(a.positions), _bits(b.positions))
-    assert np.array_equal(_bits(a.state.last_positions), _bits(b.state.last_positions))
-    assert (a.frame, a.time, a.neighbour_list_rebuilds) == (b.frame, b.time, b.neighbour_list_rebuilds)
+    a, b, calls = _both_ways(path, "selfCollision.json", 27, 10, monkeypatch)
+    assert b.holds_still() and calls == [10, 10, 7]
     assert a.neighbour_list_rebuilds > 0
 
 
@@ -437,34 +445,18 @@ def test_a_moving_world_takes_many_frames_a_call_on_each_frames_control(path, sc
     """an animated collider's or handle's poses are made for each frame, from the
     time that frame starts at; step_frames stacks them, slot after slot, into
     calls of many frames, and ends where step does, to the bit"""
-    import clothsim.simulation
-
-    a, b = scene_sim(path, scene), scene_sim(path, scene)
-    assert not b.holds_still()
-    monkeypatch.setattr(clothsim.simulation, "FRAME_CALL_WORK", 4 * b.model.num_points * b.params.simulation_steps)
-    calls = _counted_calls(b)
-    for _ in range(10):
-        a.step()
-    b.step_frames(10)
-    assert calls == [4, 4, 2]
-    assert np.array_equal(_bits(a.positions), _bits(b.positions))
-    assert np.array_equal(_bits(a.state.last_positions), _bits(b.state.last_positions))
-    assert (a.frame, a.time) == (b.frame, b.time)
+    _, b, calls = _both_ways(path, scene, 10, 4, monkeypatch)
+    assert not b.holds_still() and calls == [4, 4, 2]
 
 
 @pytest.mark.parametrize("scene, overrides", [("windy_flag.json", []),
                                               ("spinning_sphere.json", ["simulation.simulation_steps=1"])],
                          ids=["wind", "one substep a frame"])
-def test_wind_and_frames_of_one_substep_take_a_frame_a_call(path, scene, overrides):
+def test_wind_and_frames_of_one_substep_take_a_frame_a_call(path, scene, overrides, monkeypatch):
     """the wind's row is made for one frame, and a moving collider's frame of one
     substep has two slots: those runs call the solver once a frame"""
-    a, b = scene_sim(path, scene, overrides), scene_sim(path, scene, overrides)
-    calls = _counted_calls(b)
-    for _ in range(3):
-        a.step()
-    b.step_frames(3)
+    _, _, calls = _both_ways(path, scene, 3, 3, monkeypatch, overrides)
     assert calls == [1, 1, 1]
-    assert np.array_equal(_bits(a.positions), _bits(b.positions))
 
 
 # ---------------------------------------------------------------- the portable path
