@@ -183,9 +183,10 @@ class ClothSolver:
     def step_frames(self, state: State, control: Control, params: Params, substeps: int, frames: int,
                     limit2: float = np.inf) -> tuple[float, int]:
         """Advance ``state`` in place by up to ``frames`` frames of ``substeps`` substeps
-        each, all on ``control`` (a world that holds still), in one compiled call that
-        stops after the first frame leaving a point farther than sqrt(``limit2``) [m]
-        from the start or not finite. Returns (that frame's largest squared distance
+        each on ``control`` (one still frame's, or the frames' stacked by
+        :func:`.control.stack_frames`), in one compiled call that stops after
+        the first frame leaving a point farther than sqrt(``limit2``) [m] from
+        the start or not finite. Returns (that frame's largest squared distance
         [m²], inf when not finite; the frames run)."""
         springs = (self.springs,) if self.path == "grid" else (self.springs, self.pulls)
         frame_run = FrameRun(substeps=int(substeps), frames=int(frames), limit2=float(limit2))

@@ -129,9 +129,10 @@ class Control(NamedTuple):
 
 class FrameRun(NamedTuple):
     """How far one compiled call of the substep runs: ``frames`` frames of
-    ``substeps`` substeps each, every frame on the same control (a world that
-    holds still), stopping after the first frame that leaves a point farther
-    than ``limit2`` from the cloth's centre or not finite. One call for many
+    ``substeps`` substeps each, on a control whose moving kinds hold a slot
+    for every substep of them (:class:`Control`), stopping after the first
+    frame that leaves a point farther than sqrt(``limit2``) from the cloth's
+    centre or not finite. One call for many
     frames spares each frame's return to Python (see :meth:`~clothsim.Simulation.step_frames`)."""
 
     substeps: int
