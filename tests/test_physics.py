@@ -440,22 +440,20 @@ def test_a_blow_up_inside_a_call_of_many_frames_stops_at_its_frame(path):
     assert np.array_equal(_bits(a.positions), _bits(b.positions))
 
 
-@pytest.mark.parametrize("scene", ["spinning_sphere.json", "curtain.json"])
+@pytest.mark.parametrize("scene", ["spinning_sphere.json", "curtain.json", "windy_flag.json"])
 def test_a_moving_world_takes_many_frames_a_call_on_each_frames_control(path, scene, monkeypatch):
-    """an animated collider's or handle's poses are made for each frame, from the
-    time that frame starts at; step_frames stacks them, slot after slot, into
-    calls of many frames, and ends where step does, to the bit"""
+    """an animated collider's or handle's poses, and the wind's gusts, are made for
+    each frame, from the time that frame starts at; step_frames stacks them,
+    slot after slot and row after row, into calls of many frames, and ends
+    where step does, to the bit"""
     _, b, calls = _both_ways(path, scene, 10, 4, monkeypatch)
     assert not b.holds_still() and calls == [4, 4, 2]
 
 
-@pytest.mark.parametrize("scene, overrides", [("windy_flag.json", []),
-                                              ("spinning_sphere.json", ["simulation.simulation_steps=1"])],
-                         ids=["wind", "one substep a frame"])
-def test_wind_and_frames_of_one_substep_take_a_frame_a_call(path, scene, overrides, monkeypatch):
-    """the wind's row is made for one frame, and a moving collider's frame of one
-    substep has two slots: those runs call the solver once a frame"""
-    _, _, calls = _both_ways(path, scene, 3, 3, monkeypatch, overrides)
+def test_a_moving_world_of_one_substep_a_frame_takes_a_frame_a_call(path, monkeypatch):
+    """a moving collider's frame of one substep has two slots, which do not stack:
+    such a run calls the solver once a frame"""
+    _, _, calls = _both_ways(path, "spinning_sphere.json", 3, 3, monkeypatch, ["simulation.simulation_steps=1"])
     assert calls == [1, 1, 1]
 
 

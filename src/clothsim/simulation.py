@@ -247,10 +247,10 @@ class Simulation:
         one compiled call, which spares each frame's return to Python and the
         caches it cools (figures: docs/performance.md, 'Frames in one call'):
         where the world holds still (:meth:`holds_still`) on one control, and
-        where colliders or handles move, on each frame's control made as
-        :meth:`step` makes it, their slots one frame after another
-        (:func:`~clothsim.solver.control.stack_frames`). Wind, whose row is
-        made for a frame, and frames of one substep take one frame a call."""
+        where colliders, handles or the wind move, on each frame's control made
+        as :meth:`step` makes it, their slots and rows one frame after another
+        (:func:`~clothsim.solver.control.stack_frames`). Frames of one substep
+        with something moving take one frame a call."""
         if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) \
                 or not 0 <= frames <= RUN_FRAMES_MAX:
             raise ValueError(f"frames: expected a whole number from 0 to {RUN_FRAMES_MAX:,}, got {frames!r}")
@@ -261,7 +261,7 @@ class Simulation:
             many = min(left, self.frames_per_call)
             if self.holds_still():
                 control = self._control(n)
-            elif self.wind is None and n > 1:
+            elif n > 1:
                 control = self._frames_control(n, many)
             else:
                 many, control = 1, self._control(n)
@@ -283,7 +283,8 @@ class Simulation:
     def holds_still(self) -> bool:
         """Whether the world imposes the same on every frame: no collider animated
         (or only by keys that never move it), no handles and no wind (its gusts
-        change with time). Then one control serves many frames."""
+        change with time). Then one control serves many frames; otherwise
+        :meth:`step_frames` makes each frame's."""
         movers = (*self.spheres, *self.planes, *self.boxes, *self.mesh_colliders)
         return (not self.handles and self.wind is None
                 and all(getattr(c, "animation", None) is None or c.animation.is_still for c in movers))

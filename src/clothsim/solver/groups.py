@@ -124,7 +124,8 @@ class Control(NamedTuple):
     moved_to: np.ndarray | None
     """where they are at the end of each substep [m], float64 (T, H, 3)"""
     wind: np.ndarray | None
-    """the wind's row: see :mod:`.wind`"""
+    """the wind's row for each frame (F, R) (F = 1 but in a control of several
+    frames, :func:`.control.stack_frames`): see :mod:`.wind`"""
 
 
 class FrameRun(NamedTuple):

@@ -13,7 +13,7 @@ from .pull_lanes import LANES
 from .selfcollide import self_collide
 from .shared import part_range, renamed
 from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _from_planes, _hold, _to_planes
-from .wind import blow
+from .wind import blow, frame_row
 
 
 def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, mesh_knobs, control, lists, pairs,
@@ -60,7 +60,7 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
     copying = settle_needs_q(control)
     substeps, frames, limit2 = frame_run.substeps, frame_run.frames, frame_run.limit2
     far2 = 0.0
-    done = 0
+    done = np.int64(0)  # not a literal: numba would compile frame_row once more for it
     while done < frames:
         for s in range(substeps):
             slot = done * substeps + s  # the control's slot: frame after frame
@@ -74,7 +74,7 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
             if handle >= 0:
                 _hold(P, handle, handle_pos)
             place_handles(P, control.moved_points, control.moved_to, slot)
-            blow(P, L, points, mesh_knobs.inv_mass, mesh_knobs.dt2, control.wind, W, s)
+            blow(P, L, points, mesh_knobs.inv_mass, mesh_knobs.dt2, frame_row(control.wind, done), W, s)
             if self_collision:
                 pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
             for t in prange(parts):

@@ -138,11 +138,12 @@ def calls(variant: str) -> list:
             (_level_both, (lists.pos32, lists.reference, 0.01, lists.centres, zero, i64)),
             (_to_single, (P, 0.0, 0.0, 0.0, lists.pos32, zero, i64))]
     out += [(place_handles, (P, control.moved_points, control.moved_to, zero))]
+    wind = None if control.wind is None else control.wind[0]  # the row the substep hands the wind
     if mesh:
-        out += [(blow, (P, L, points, knobs.inv_mass, knobs.dt2, control.wind, scratch.W, zero))]
+        out += [(blow, (P, L, points, knobs.inv_mass, knobs.dt2, wind, scratch.W, zero))]
         out = [(k, a) for k, a in out if k is not _provot_both] + _mesh_calls(rest, pinned, P, L, points)
     else:
-        out += [(blow_grid, (P, L, points.free, springs.valid[0], knobs.inv_mass, knobs.dt2, control.wind,
+        out += [(blow_grid, (P, L, points.free, springs.valid[0], knobs.inv_mass, knobs.dt2, wind,
                              wind_buffer(n, cols), zero, springs.end[1])),
                 (gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
                 (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero))]

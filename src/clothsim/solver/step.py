@@ -8,7 +8,7 @@ from numba import njit, prange
 
 from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
-from .wind import blow_grid
+from .wind import blow_grid, frame_row
 from .provot import provot
 from .springs import CHUNK, gather_ahead, integrate
 from .selfcollide import self_collide
@@ -111,7 +111,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     copying = settle_needs_q(control)
     substeps, frames, limit2 = frame_run.substeps, frame_run.frames, frame_run.limit2
     far2 = 0.0
-    done = 0
+    done = np.int64(0)  # not a literal: numba would compile frame_row once more for it
     while done < frames:
         for s in range(substeps):
             slot = done * substeps + s  # the control's slot: frame after frame
@@ -126,7 +126,8 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
             if handle >= 0:
                 _hold(P, handle, handle_pos)
             place_handles(P, control.moved_points, control.moved_to, slot)
-            blow_grid(P, L, free, springs.valid[0], knobs.inv_mass, knobs.dt2, control.wind, W, s, cols)
+            blow_grid(P, L, free, springs.valid[0], knobs.inv_mass, knobs.dt2, frame_row(control.wind, done), W, s,
+                      cols)
             if self_collision:
                 pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
             for t in prange(parts):

@@ -24,7 +24,8 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from .shared import KERNEL_OPTIONS, over_length
 
@@ -192,6 +193,24 @@ def blow(P, L, points, inv_mass, dt2, wind, W, s):
         P[0, p] += k * W[0, p]
         P[1, p] += k * W[1, p]
         P[2, p] += k * W[2, p]
+
+
+def frame_row(rows, f):
+    """The wind's row for frame f of a call from a control's rows (F, R), one a
+    frame (see :func:`~.control.stack_frames`), or None where there is no
+    wind. In compiled code an overload for each of the two types: a function
+    with both branches returned an optional array, which the wind's kernels
+    then took as a type of its own."""
+    if rows is None:
+        return None
+    return rows[min(f, rows.shape[0] - 1)]
+
+
+@overload(frame_row)
+def _frame_row(rows, f):
+    if isinstance(rows, types.NoneType):
+        return lambda rows, f: None
+    return lambda rows, f: rows[min(f, rows.shape[0] - 1)]
 
 
 def wind_buffer(num_points: int, cols: int) -> np.ndarray:
