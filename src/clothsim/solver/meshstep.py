@@ -20,7 +20,8 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
                   scratch, frame_run):
     """Run the frames of ``frame_run`` (a :class:`~.groups.FrameRun`) on
     ``positions``/``last_positions`` (N, 3) [m] in place, for a model of any
-    cloths: the general path's twin of :func:`~.step._advance`, with the same groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`
+    cloths: the general path's twin of :func:`~.step._advance`, with the same
+    groups but ``mesh_springs`` a :class:`~.meshsprings.MeshSprings`
     and ``mesh_pulls`` a :class:`~.mesh_pulls.MeshPulls` (the springs as lists
     for Provot and as each point's slots for the forces: a group inside
     another does not reach a prange body), ``mesh_knobs`` a
