@@ -101,7 +101,7 @@ FRAME_BY_FRAME = False
 """``--frame-by-frame``: each run calls ``Simulation.step`` once a frame (one
 compiled call a frame, as the viewer steps), where by default it calls
 ``step_frames`` for the whole run, as ``Simulation.run`` and ``clothsim
-simulate`` do: several frames to a compiled call where the world holds still"""
+simulate`` do: several frames to a compiled call"""
 
 
 def advance(sim: Simulation, frames: int) -> None:

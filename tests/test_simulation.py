@@ -6,10 +6,15 @@ of them on every solver path."""
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
+
 import numpy as np
 import pytest
 
 from clothsim import Simulation
+from clothsim.interrupts import held_interrupts
 from clothsim.model import Model
 from clothsim.scene import parse_scene
 from clothsim.solver import ClothSolver
@@ -123,3 +128,88 @@ def test_step_refuses_substeps_that_are_not_a_whole_bounded_count(substeps):
     np.testing.assert_array_equal(sim.positions, start)
     sim.step(substeps=np.int64(2))  # a NumPy whole number is a whole number
     assert sim.time == pytest.approx(2 * sim.params.dt)
+
+
+def _bits(a):
+    return np.ascontiguousarray(a).view(np.int64)
+
+
+def test_a_ctrl_c_during_a_run_leaves_the_clock_and_the_list_with_the_cloth():
+    """Ctrl-C lands while a compiled call runs many frames: KeyboardInterrupt comes
+    once the call's frames are counted, so the frame, clock and neighbour list
+    match the cloth, and the run goes on from there as an unbroken run of as
+    many frames does, to the bit"""
+    sim = Simulation.from_file(SCENES / "selfCollision.json")
+    sim.step(0)  # the kernels compiled before the timer starts
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    timer = threading.Timer(0.4, os.kill, (os.getpid(), signal.SIGINT))
+    try:
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            sim.run(60.0)  # far longer than the timer
+    finally:
+        timer.cancel()
+        timer.join()
+        signal.signal(signal.SIGINT, previous)
+    assert 0 < sim.frame < 60 * sim.params.frames_per_sec
+    sim.step_frames(20)
+    unbroken = Simulation.from_file(SCENES / "selfCollision.json")
+    unbroken.step_frames(sim.frame)
+    assert np.array_equal(_bits(sim.positions), _bits(unbroken.positions))
+    assert (sim.time, sim.neighbour_list_rebuilds) == (unbroken.time, unbroken.neighbour_list_rebuilds)
+
+
+def test_held_interrupts_raise_after_the_block_through_the_handler_there_was():
+    """a signal that comes inside the block runs no handler there; it is raised once
+    as the block ends, through the handler that was set before it, which is set
+    again"""
+    seen = []
+
+    def handler(signum, frame):
+        seen.append(signum)
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with held_interrupts():
+                signal.raise_signal(signal.SIGINT)
+                signal.raise_signal(signal.SIGINT)
+                inside = list(seen)
+        assert inside == [] and seen == [signal.SIGINT]
+        assert signal.getsignal(signal.SIGINT) is handler
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_a_first_step_compiles_before_ctrl_c_is_held(monkeypatch):
+    """the hold never covers a compile (a Ctrl-C then stops it at once): the step's
+    kernels are loaded, and nothing moved, before the hold begins"""
+    import clothsim.simulation
+
+    sim = sim_of()
+    start = sim.positions.copy()
+    warm_at_hold = []
+    real = clothsim.simulation.held_interrupts
+
+    def watched():
+        warm_at_hold.append(sim.solver.variant(sim.control, sim.params) in sim.solver._warm)
+        np.testing.assert_array_equal(sim.positions, start)
+        return real()
+
+    monkeypatch.setattr(clothsim.simulation, "held_interrupts", watched)
+    assert sim.solver.variant(sim.control, sim.params) not in sim.solver._warm
+    sim.step()
+    assert warm_at_hold == [True]
+
+
+def test_a_moving_world_takes_a_bounded_count_of_frames_a_call():
+    """each frame of a moving world has a control made in Python before the call: a
+    small cloth's calls stop at MOVING_FRAMES_MAX frames, a still world's do not"""
+    from clothsim.simulation import MOVING_FRAMES_MAX
+
+    still = sim_of()
+    spinning = sim_of(sphere={"origin": [0.5, -0.5, 0.5], "radius": 0.2, "friction": 0.5,
+                              "animation": {"keys": [{"t": 0}, {"t": 4, "rotate": [0, 360, 0]}], "loop": True}})
+    assert still.holds_still() and still.frames_per_call > MOVING_FRAMES_MAX
+    assert not spinning.holds_still() and spinning.frames_per_call == MOVING_FRAMES_MAX

@@ -10,6 +10,7 @@ import numpy as np
 
 from .errors import SimulationError
 from .export import write_model_obj
+from .interrupts import held_interrupts
 from .mesh import compute_normals
 from .model import Cloth, Model, build_scene_model
 from .params import Material, Params
@@ -29,6 +30,11 @@ FRAME_CALL_WORK = 5_000_000
 takes at most: some 66 frames of a 50x50 cloth at 30 substeps a frame, 4 of a
 200x200 one; a call's return to Python costs about what two or three of a
 50x50 cloth's substeps do, so this many leave it a few thousandths of the run"""
+
+MOVING_FRAMES_MAX = 256
+"""the most frames of a moving world (:meth:`Simulation.holds_still` false) in one
+call: each frame's control is made in Python before the call, so a small cloth,
+whose FRAME_CALL_WORK spans tens of thousands of frames, would wait on that"""
 
 
 @dataclass(frozen=True)
@@ -233,10 +239,13 @@ class Simulation:
                                      or not 0 <= substeps <= STEPS_MAX):
             raise ValueError(f"substeps: expected a whole number from 0 to {STEPS_MAX:,}, got {substeps!r}")
         n = p.simulation_steps if substeps is None else int(substeps)
-        far2 = self.solver.step(self.state, self._control(n), p, n)
-        self.state.frame += 1 if substeps is None else 0
-        self.state.time += n * p.dt
-        self._normals = None
+        control = self._control(n)
+        self.solver.load(self.state, control, p, n)
+        with held_interrupts():  # the clock moves with the cloth, even on Ctrl-C
+            far2 = self.solver.step(self.state, control, p, n)
+            self.state.frame += 1 if substeps is None else 0
+            self.state.time += n * p.dt
+            self._normals = None
         self._check_runaway(far2)
 
     def step_frames(self, frames: int) -> None:
@@ -265,11 +274,13 @@ class Simulation:
                 control = self._frames_control(n, many)
             else:
                 many, control = 1, self._control(n)
-            far2, done = self.solver.step_frames(self.state, control, p, n, many, self.solver.runaway2)
-            for _ in range(done):  # as step() adds them, frame by frame
-                self.state.frame += 1
-                self.state.time += n * p.dt
-            self._normals = None
+            self.solver.load(self.state, control, p, n)
+            with held_interrupts():  # the clock moves with the cloth, even on Ctrl-C
+                far2, done = self.solver.step_frames(self.state, control, p, n, many, self.solver.runaway2)
+                for _ in range(done):  # as step() adds them, frame by frame
+                    self.state.frame += 1
+                    self.state.time += n * p.dt
+                self._normals = None
             self._check_runaway(far2)
             left -= done
 
@@ -277,8 +288,10 @@ class Simulation:
     def frames_per_call(self) -> int:
         """the most frames :meth:`step_frames` runs in one compiled call: about
         FRAME_CALL_WORK point-substeps, so that a call stays short enough for
-        a progress bar and Ctrl-C to answer between calls"""
-        return max(1, FRAME_CALL_WORK // max(1, self.model.num_points * self.params.simulation_steps))
+        a progress bar and Ctrl-C to answer between calls, and at most
+        MOVING_FRAMES_MAX where something moves"""
+        most = max(1, FRAME_CALL_WORK // max(1, self.model.num_points * self.params.simulation_steps))
+        return most if self.holds_still() else min(most, MOVING_FRAMES_MAX)
 
     def holds_still(self) -> bool:
         """Whether the world imposes the same on every frame: no collider animated

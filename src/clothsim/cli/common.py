@@ -156,7 +156,7 @@ def run_with_progress(sim: Simulation, seconds: float, show: bool, on_frame=None
     try:
         done = 0
         while done < frames:
-            if on_frame is None:  # several frames a compiled call where the world holds still
+            if on_frame is None:  # several frames a compiled call (Simulation.step_frames)
                 many = min(frames - done, sim.frames_per_call)
                 sim.step_frames(many)
             else:

@@ -1,8 +1,9 @@
 """The solver: a model's substeps as compiled kernels, one stage per module.
 
 :class:`ClothSolver` steps a model's state under its control and params;
-:mod:`.step` runs a whole frame of substeps in one compiled call so that
-Python is entered once per frame, not once per substep. The stages:
+:mod:`.step` runs the substeps of one frame or of many in one compiled
+call, so that Python is entered at most once per frame, never once per
+substep. The stages:
 :mod:`.springs` (forces and Verlet), :mod:`.selfcollide`, :mod:`.colliders`,
 :mod:`.provot`; the groups they take are in :mod:`.groups`.
 """

@@ -180,6 +180,14 @@ class ClothSolver:
         largest squared distance of a point from the start [m²] (inf when not finite)."""
         return self.step_frames(state, control, params, substeps, 1)[0]
 
+    def load(self, state: State, control: Control, params: Params, substeps: int) -> None:
+        """Compile (or load from the cache) the kernels a step with these takes,
+        once per variant in a process; advances nothing. A caller that holds
+        Ctrl-C back over a step (:func:`clothsim.interrupts.held_interrupts`)
+        calls this first, so that the hold never covers a compile."""
+        if self.variant(control, params) not in self._warm:
+            self.step_frames(state, control, params, substeps, 0)
+
     def step_frames(self, state: State, control: Control, params: Params, substeps: int, frames: int,
                     limit2: float = np.inf) -> tuple[float, int]:
         """Advance ``state`` in place by up to ``frames`` frames of ``substeps`` substeps

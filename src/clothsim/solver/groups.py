@@ -139,7 +139,7 @@ class FrameRun(NamedTuple):
     substeps: int
     """substeps a frame (0: the call only loads the kernels)"""
     frames: int
-    """frames the call runs, at least 1"""
+    """frames the call runs (0: it only loads the kernels, see :meth:`~.cloth_solver.ClothSolver.load`)"""
     limit2: float
     """[m²] the squared distance from ``Points.center`` past which the run stops (inf: none)"""
 
