@@ -451,6 +451,35 @@ def test_a_moving_world_takes_many_frames_a_call_on_each_frames_control(path, mo
         assert not b.holds_still() and calls == [4, 4, 2], scene
 
 
+def test_a_sliding_turning_box_in_calls_of_many_frames_and_a_blow_up_among_them(path, monkeypatch):
+    """a box that slides and turns stacks its poses as the sphere does, and ends where
+    step does, to the bit; and a blow-up in a moving world's call stops at its
+    frame, with the error, frame and positions of stepping frame by frame"""
+    import clothsim.simulation
+
+    box = {"center": [0.5, 0.55, 0.55], "size": [0.5, 0.2, 0.4], "friction": 0.5,
+           "animation": {"keys": [{"t": 0}, {"t": 1, "translate": [0.1, 0.2, 0], "rotate": [0, 40, 10]}]}}
+    a, b = small_sim(path, box=box), small_sim(path, box=box)
+    monkeypatch.setattr(clothsim.simulation, "FRAME_CALL_WORK", 5 * b.model.num_points * b.params.simulation_steps)
+    calls = _counted_calls(b)
+    for _ in range(40):
+        a.step()
+    b.step_frames(40)
+    assert not b.holds_still() and calls == [5] * 8
+    assert np.array_equal(_bits(a.positions), _bits(b.positions))
+    assert np.array_equal(_bits(a.state.last_positions), _bits(b.state.last_positions))
+    assert (a.frame, a.time) == (b.frame, b.time)
+    bad = {"ks": 1e9}
+    a, b = (small_sim(path, box=box, cloth=bad, simulation={"simulation_steps": 2}) for _ in range(2))
+    with pytest.raises(SimulationError) as by_frame:
+        for _ in range(180):
+            a.step()
+    with pytest.raises(SimulationError) as in_calls:
+        b.step_frames(180)
+    assert str(in_calls.value) == str(by_frame.value) and a.frame == b.frame < 180
+    assert np.array_equal(_bits(a.positions), _bits(b.positions))
+
+
 def test_a_moving_world_of_one_substep_a_frame_takes_a_frame_a_call(path, monkeypatch):
     """a moving collider's frame of one substep has two slots, which do not stack:
     such a run calls the solver once a frame"""

@@ -186,7 +186,7 @@ class ClothSolver:
         Ctrl-C back over a step (:func:`clothsim.interrupts.held_interrupts`)
         calls this first, so that the hold never covers a compile."""
         if self.variant(control, params) not in self._warm:
-            self.step_frames(state, control, params, substeps, 0)
+            self._call(state, control, params, substeps, 0, np.inf)
 
     def step_frames(self, state: State, control: Control, params: Params, substeps: int, frames: int,
                     limit2: float = np.inf) -> tuple[float, int]:
@@ -196,6 +196,11 @@ class ClothSolver:
         the first frame leaving a point farther than sqrt(``limit2``) [m] from
         the start or not finite. Returns (that frame's largest squared distance
         [m²], inf when not finite; the frames run)."""
+        return self._call(state, control, params, substeps, frames, limit2)
+
+    def _call(self, state: State, control: Control, params: Params, substeps: int, frames: int,
+              limit2: float) -> tuple[float, int]:
+        """the compiled call of :meth:`step_frames` (0 frames: of :meth:`load`)"""
         springs = (self.springs,) if self.path == "grid" else (self.springs, self.pulls)
         frame_run = FrameRun(substeps=int(substeps), frames=int(frames), limit2=float(limit2))
         far2, pairs, done = self._advance(state.positions, state.last_positions, self.points, *springs,
