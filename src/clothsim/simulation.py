@@ -266,9 +266,11 @@ class Simulation:
         p = self.params
         n = p.simulation_steps
         left = int(frames)
+        still = self.holds_still()  # nothing the user edits changes during the loop
+        per_call = self._frames_per_call(still)
         while left > 0:
-            many = min(left, self.frames_per_call)
-            if self.holds_still():
+            many = min(left, per_call)
+            if still:
                 control = self._control(n)
             elif n > 1:
                 control = self._frames_control(n, many)
@@ -290,8 +292,11 @@ class Simulation:
         FRAME_CALL_WORK point-substeps, so that a call stays short enough for
         a progress bar and Ctrl-C to answer between calls, and at most
         MOVING_FRAMES_MAX where something moves"""
+        return self._frames_per_call(self.holds_still())
+
+    def _frames_per_call(self, still: bool) -> int:
         most = max(1, FRAME_CALL_WORK // max(1, self.model.num_points * self.params.simulation_steps))
-        return most if self.holds_still() else min(most, MOVING_FRAMES_MAX)
+        return most if still else min(most, MOVING_FRAMES_MAX)
 
     def holds_still(self) -> bool:
         """Whether the world imposes the same on every frame: no collider animated
