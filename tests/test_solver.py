@@ -705,9 +705,12 @@ def test_touching_bucket_that_drifts_apart_pushes_only_the_pairs_still_touching(
     free = np.ones(2 * pairs)
     x = NeighbourList.allocate(2 * pairs, parts=parts)
     x, hits = collide_in_place(planes(pos), rest, free, 0.02, 3, x)
-    assert hits == pairs and x.meta[BUCKET] == pairs and x.rebuilds == 1
+    ends = x.meta[BUCKET:].reshape(parts, SLACK_BUCKETS)
+    # each part owns the pairs of its half of the points, and they all touch
+    assert hits == pairs and x.rebuilds == 1
+    np.testing.assert_array_equal(ends[:, 0], each * np.arange(1, parts + 1))
     moved = pos.copy()
-    # the last 8 pairs of each part's share of the list, in the list's order
+    # the last 8 pairs of each part's block of the list, in the list's order
     listed = x.pairs[:, :pairs].min(axis=0) // 2  # the pair each entry is
     drifted = np.zeros(pairs, dtype=bool)
     for t in range(parts):
@@ -816,10 +819,11 @@ def test_grid_metric_drops_only_offsets_the_list_never_holds(n, ratio, warp):
 
 @pytest.mark.parametrize("parts", [1, 2])
 def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
-    """the pass right after a build orders the list by how far past the reach each
-    pair was: the touching pairs first, then buckets of slack, each in the build's
-    order (part by part), with their ends noted; every pair of the build stays,
-    and later passes leave the order be"""
+    """the pass right after a build orders the list by the part that owns each pair
+    (the part whose points the build found it from), then by how far past the
+    reach it was: in each part's block the touching pairs first, then buckets
+    of slack, each in the build's order, with their ends noted; every pair of
+    the build stays, and later passes leave the order be"""
     m, near, pos = folded_cloth(40, 0.75, 0.9)
     reach = 2 * m.thickness
     x = NeighbourList.allocate(m.num_points, 40, near, parts, skin=0.75)
@@ -834,22 +838,34 @@ def test_first_pass_over_a_new_list_sorts_it_by_slack(parts):
     radius = reach * (1 + 0.001 * x.meta[SKIN])
     steps = (d * d - reach * reach) * (SLACK_BUCKETS - 1) / (radius * radius - reach * reach)
     bucket = np.where(d < reach, 0, np.minimum(1 + np.floor(steps), SLACK_BUCKETS - 1))
-    ends = x.meta[BUCKET:BUCKET + SLACK_BUCKETS]
-    assert ends[-1] == listed and ends[0] == np.sum(d < reach) > 0
-    assert len(set(bucket.tolist())) >= 5 and np.all(np.diff(bucket) >= 0)
-    np.testing.assert_array_equal(np.searchsorted(bucket, np.arange(SLACK_BUCKETS), side="right"), ends)
+    assert x.meta.shape == (BUCKET + SLACK_BUCKETS * parts,)
+    ends = x.meta[BUCKET:].reshape(parts, SLACK_BUCKETS)
+    assert ends[-1, -1] == listed and len(set(bucket.tolist())) >= 5
     order = {p: k for k, p in enumerate(map(tuple, fresh[:, :built].T.tolist()))}
     rank = np.array([order[p] for p in map(tuple, pairs.T.tolist())])
     assert len(set(rank.tolist())) == built  # the same pairs, each once
-    # within a bucket, each part's pairs in the build's order: the build deals its
-    # shares of the points out to the parts in turn, and a pair is its first end's
+    # the build deals its shares of the points out to the parts in turn, and a pair
+    # is its first end's; the shares in order are cut into one run per part,
+    # which owns their pairs
     shares = x.tally.shape[0]
     share = (pairs[0].astype(np.int64) * shares + shares - 1) // m.num_points  # inverse of part_range
     assert np.all(share * m.num_points // shares <= pairs[0])
     assert np.all(pairs[0] < (share + 1) * m.num_points // shares)
-    key = (share % parts) * (built + 1) + rank
-    for j in range(SLACK_BUCKETS):
-        assert np.all(np.diff(key[bucket == j]) > 0)
+    owner = share * parts // shares
+    touching = 0
+    for o in range(parts):
+        start = 0 if o == 0 else ends[o - 1, -1]
+        block = slice(start, ends[o, -1])
+        assert np.all(owner[block] == o) and ends[o, -1] > start
+        assert np.all(np.diff(bucket[block]) >= 0)
+        np.testing.assert_array_equal(start + np.searchsorted(bucket[block], np.arange(SLACK_BUCKETS), side="right"),
+                                      ends[o])
+        key = share[block] * (built + 1) + rank[block]
+        for j in range(SLACK_BUCKETS):
+            assert np.all(np.diff(key[bucket[block] == j]) > 0)
+        touching += ends[o, 0] - start
+    assert touching == np.sum(d < reach) > 0
+    assert np.sum(owner == parts - 1) > 0
     P = planes(pos)
     x, _ = collide_in_place(P, m.rest_positions, free, m.thickness, 10 ** 9, x)  # the list holds
     assert x.rebuilds == 1

@@ -54,7 +54,10 @@ SLACK_BUCKETS = 16
 the piling 50x50 cloth it checked 6% fewer pairs than with 8 buckets, and the
 sort costs the same"""
 
-META_SIZE = BUCKET + SLACK_BUCKETS  # BUCKET + j: where slack bucket j ends in the list
+META_SIZE = BUCKET + SLACK_BUCKETS
+"""``meta``'s size for one part; each part more adds SLACK_BUCKETS: ``BUCKET + o *
+SLACK_BUCKETS + j`` is where bucket j of the pairs part o owns ends in the list
+(see :func:`~.slack.sort_by_slack`)"""
 
 
 class NeighbourList(NamedTuple):
@@ -90,7 +93,8 @@ class NeighbourList(NamedTuple):
     count: np.ndarray
     """each part's count of pushes per point, PUSH_DTYPE (parts, N)"""
     meta: np.ndarray
-    """the list's state, int64 (META_SIZE,): fields PAIRS, VALID, REBUILDS, COLS, SKIN, BUCKET + j"""
+    """the list's state, int64 (META_SIZE + SLACK_BUCKETS * (parts - 1),): fields PAIRS,
+    VALID, REBUILDS, COLS, SKIN, then the buckets' ends part by part (see META_SIZE)"""
     near_offset: np.ndarray
     """flat offsets of the near stencil, int64 (S,): see :func:`~.nearstencil.near_stencil`"""
     near_weight: np.ndarray
@@ -136,7 +140,7 @@ class NeighbourList(NamedTuple):
         :func:`~.nearstencil.skin_factor`."""
         from .hashgrid import CELLS_PER_POINT, SEARCH_ROWS
         n = num_points
-        meta = np.zeros(META_SIZE, dtype=np.int64)
+        meta = np.zeros(META_SIZE + SLACK_BUCKETS * (max(parts, 1) - 1), dtype=np.int64)
         meta[COLS] = n if cols is None else cols
         meta[SKIN] = round(1000 * skin)
         if near is None:

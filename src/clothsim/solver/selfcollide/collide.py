@@ -140,22 +140,21 @@ def self_collide(P, points, simulation_steps, lists, pairs):
     # bucket 0, the pairs that touched at the build, is pushed without a branch
     # per pair: those pairs hover about the reach, and the branch on whether
     # one touches was mispredicted about as often as not
-    touching = meta[BUCKET]
     # the pairs that rarely touch and, between builds, the near stencil are first
     # tested in single precision (see near_pushes)
     wide2 = widened2(reach, extent)
-    checked = touching if fresh else checked_pairs(meta, reachable * (SLACK_BUCKETS - 1))
-    sure = min(checked, touching)
     for t in prange(parts):
+        own = np.int64(t)  # prange's index is unsigned: with the 1 below, a float
         h = near_pushes(P, reach, lists, t, parts, fresh, reachable * NEAR_LEVELS, NEAR_LEVELS / span2,
                         wide2, not fresh)
-        # the pairs that touched at the build cost each part the same only if
-        # each takes its share of them: cut evenly as one range, the first part
-        # took them all and the others only the cheap tests of the rest
-        a0, a1 = part_range(sure, parts, t)
-        h += pair_pushes(P, reach, pairs, a0, a1, a1, lists, t, h, wide2)
-        b0, b1 = part_range(checked - sure, parts, t)
-        tally[t, 1] = h + pair_pushes(P, reach, pairs, sure + b0, sure + b0, sure + b1, lists, t, h, wide2)
+        # each part pushes the pairs it owns (see sort_by_slack): they run from the
+        # end of the part before's buckets, its own touching ones first
+        start = 0 if own == 0 else meta[BUCKET + own * SLACK_BUCKETS - 1]
+        touching = meta[BUCKET + own * SLACK_BUCKETS]
+        checked = touching if fresh else checked_pairs(meta, reachable * (SLACK_BUCKETS - 1), own)
+        sure = min(checked, touching)
+        h += pair_pushes(P, reach, pairs, start, sure, sure, lists, t, h, wide2)
+        tally[t, 1] = h + pair_pushes(P, reach, pairs, sure, sure, checked, lists, t, h, wide2)
     hits, most = 0, 0
     for t in range(parts):
         hits += tally[t, 1]

@@ -63,8 +63,15 @@ def sort_by_slack(pairs, labels, segments, meta, parts):
     (S, 2) rows (start, count) in ``pairs`` and ``labels``, with gaps between
     them: each share of the list build wrote its own, and the sort gathers
     them, so they are not first moved together into one run (a pass over
-    the list, on one thread). Segment i is part ``i % parts``'s, as the
-    build dealt out its shares, so each part sorts what it found.
+    the list, on one thread). Segment i is sorted by part ``i % parts``, as
+    the build dealt out its shares, so each part sorts what it found; it is
+    owned by part ``i * parts // S``, which pushes its pairs between builds.
+    With the shares in the order of their points, a part owns the pairs
+    found from the points it moves, and reads the other parts' points only
+    for pairs that reach across: on two threads, pushing an even cut of the
+    list made each part read half its ends from lines the other core had
+    just written (docs/performance.md, 'Pairs pushed by the part that owns
+    them').
 
     A pair of the list started ``slack`` past the reach, and it cannot touch
     before two points have come closer by that much; :func:`drift_bound`
@@ -88,17 +95,21 @@ def sort_by_slack(pairs, labels, segments, meta, parts):
         for i in range(t, segs, parts):
             lo = segments[i, 0]
             _count_runs(labels, lo, lo + segments[i, 1], at[i])
-    # a run's pairs of bucket j go after bucket j's pairs of the runs before it:
-    # part by part, each part's segments in turn, their runs in turn
+    # the list is cut into one block per part, the pairs each part owns: those
+    # its segments found, the segments in order cut into ``parts`` equal runs
+    # (a list build's shares are ranges of points in order, so a part owns the
+    # pairs found from its own points, see self_collide). In a block, bucket j
+    # follows bucket j - 1; in a bucket, the owner's segments in turn, their
+    # runs in turn
     total = 0
-    for j in range(SLACK_BUCKETS):
-        for t in range(parts):
-            for i in range(t, segs, parts):
+    for o in range(parts):
+        for j in range(SLACK_BUCKETS):
+            for i in range(o * segs // parts, (o + 1) * segs // parts):
                 for r in range(SORT_LANES):
                     c = at[i, r, j]
                     at[i, r, j] = total
                     total += c
-        meta[BUCKET + j] = total
+            meta[BUCKET + o * SLACK_BUCKETS + j] = total
     out = np.empty_like(pairs)
     for t in prange(parts):
         for i in range(t, segs, parts):
@@ -163,8 +174,9 @@ def _place(pairs, labels, k, at, r, out):
 
 
 @njit(cache=True, inline="always")
-def checked_pairs(meta, reachable):
-    """How many pairs from the front of the list a substep checks: the buckets
-    whose least slack lies below ``reachable`` (in the steps of :func:`pair_pushes`)."""
+def checked_pairs(meta, reachable, owner=0):
+    """Where the pairs of part ``owner`` that a substep checks end in the list: its
+    buckets whose least slack lies below ``reachable`` (in the steps of
+    :func:`pair_pushes`); they start where the part before's buckets end."""
     top = min(np.int64(reachable) + 1, SLACK_BUCKETS - 1)
-    return meta[BUCKET + top]
+    return meta[BUCKET + owner * SLACK_BUCKETS + top]
