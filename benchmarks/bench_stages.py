@@ -69,7 +69,7 @@ from clothsim.solver.selfcollide.pushes import apply_pushes, pair_pushes
 from clothsim.solver.selfcollide.slack import SLACK_BUCKETS, label_pairs, sort_by_slack
 from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
 from clothsim.solver.springs import integrate, spring_forces, verlet_gather
-from clothsim.solver.step import _chunk_range, _to_planes
+from clothsim.solver.step import _chunk_range, _gather_planes
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -189,8 +189,9 @@ class Copy:
     def __init__(self, sim: Simulation):
         self.sim, self.solver = sim, sim.solver
         self.scratch = s = self.solver.scratch
-        _to_planes(sim.state.positions, s.P)
-        _to_planes(sim.state.last_positions, s.L)
+        order = self.solver.points.order  # the solver's slots (see grid_order)
+        _gather_planes(sim.state.positions, s.P, order)
+        _gather_planes(sim.state.last_positions, s.L, order)
         self.P0, self.L0 = s.P.copy(), s.L.copy()
 
     def reset(self) -> None:

@@ -232,7 +232,8 @@ def test_wind_drag_on_a_triangle_is_half_rho_cd_area_u_squared():
     W = np.zeros((3, 3))
     tris = np.array([[0, 1, 2]], dtype=np.int32)
 
-    points = Points(rest=P.T.copy(), free=np.ones(3), thickness=0.01, center=np.zeros(3), span=10.0, triangles=tris)
+    points = Points(rest=P.T.copy(), free=np.ones(3), thickness=0.01, center=np.zeros(3), span=10.0, triangles=tris,
+                    order=np.arange(3))
     blow(P, L, points, np.full(3, 1 / m), dt * dt, wind, W, 0)
     force = 0.5 * AIR_DENSITY * drag * 0.5 * 16.0
     np.testing.assert_allclose(P[0] - L[0], dt * dt * force / 3 / m, rtol=1e-12)

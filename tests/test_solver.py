@@ -372,7 +372,7 @@ def points_group(rest, free, thickness, span=np.inf):
     """the points group as self-collision takes it (the blow-up centre is not read there)"""
     return Points(rest=np.array(rest, dtype=np.float64), free=np.asarray(free, dtype=np.float64),
                   thickness=float(thickness), center=np.zeros(3), span=float(span),
-                  triangles=np.zeros((0, 3), dtype=np.int32))
+                  triangles=np.zeros((0, 3), dtype=np.int32), order=np.arange(len(free)))
 
 
 def collide_in_place(P, rest, free, thickness, steps, lists, span=np.inf):

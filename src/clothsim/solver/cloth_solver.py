@@ -41,6 +41,33 @@ def build_compiled() -> bool:
     return kernel_cache.is_warm(BUILD_VARIANT)
 
 
+def grid_order(rest: np.ndarray, grid: tuple[int, int], parts: int, gravity) -> tuple[np.ndarray, tuple[int, int]]:
+    """(order, (rows, cols)): the slots in which the grid path holds a grid cloth's
+    points, and the grid as it holds them. The parts of a substep are ranges of
+    slots, cut between rows. A cloth whose rows follow one another down
+    ``gravity`` (hangs, or falls upright) folds across its rows, and its layers
+    pile up from rows far apart: cut between rows, half the pairs of the pile
+    that self-collision pushes at 100×100 reached from one part into the
+    other. Such a cloth, cut into more than one part, is held column by
+    column (the grid transposed: ``order[k]`` is the model's point in slot
+    k), so the cut runs down the cloth, and the layers of each half stay in
+    that half's part (figures: docs/performance.md, 'Pairs pushed by the
+    part that owns them'). One part, or any other cloth: row by row, as the
+    model numbers them. ``rest`` (N, 3) [m], ``grid`` (rows, cols)."""
+    rows, cols = grid
+    n = rows * cols
+    order = np.arange(n)
+    if parts < 2 or rows < 2 or cols < 2:
+        return order, (rows, cols)
+    g = np.asarray(gravity, dtype=np.float64)
+    g = g / max(float(np.linalg.norm(g)), 1e-300)
+    down_rows = abs(float(np.dot(rest[cols] - rest[0], g))) / max(float(np.linalg.norm(rest[cols] - rest[0])), 1e-300)
+    down_cols = abs(float(np.dot(rest[1] - rest[0], g))) / max(float(np.linalg.norm(rest[1] - rest[0])), 1e-300)
+    if down_rows <= down_cols:
+        return order, (rows, cols)
+    return order.reshape(rows, cols).T.ravel(), (cols, rows)
+
+
 class ClothSolver:
     """Steps a :class:`~clothsim.model.Model` in place: ``step(state, control, params, substeps)``.
 
@@ -84,13 +111,21 @@ class ClothSolver:
                                Q=np.zeros((3, n)), W=self._wind)
         kernel_cache.mark_warm(BUILD_VARIANT)
 
-    def _points(self, size: float) -> None:
+    def _points(self, size: float, order: np.ndarray) -> None:
+        """the Points of the model, its points in the slots ``order`` gives"""
         model = self.model
         # pairs of different cloths keep the larger thickness apart: one reach for the whole list
         thickness = max(c.thickness for c in model.cloths)
-        self.points = Points(rest=model.rest_positions, free=(~model.pinned).astype(np.float64),
+        slot = np.empty_like(order)
+        slot[order] = np.arange(order.shape[0])
+        self._slot = slot
+        rest = np.ascontiguousarray(model.rest_positions[order])
+        triangles = slot[model.triangles].astype(model.triangles.dtype)
+        for a in (rest, triangles, order):
+            a.setflags(write=False)  # as the model's arrays are: the kernels are compiled for read-only ones
+        self.points = Points(rest=rest, free=(~model.pinned[order]).astype(np.float64),
                              thickness=float(thickness), center=model.rest_positions.mean(axis=0),
-                             span=2.0 * RUNAWAY_FACTOR * size, triangles=model.triangles)
+                             span=2.0 * RUNAWAY_FACTOR * size, triangles=triangles, order=order)
         self.runaway2 = (RUNAWAY_FACTOR * size) ** 2
         """squared distance from the start past which a point means the run blew up [m²]"""
 
@@ -98,15 +133,19 @@ class ClothSolver:
         """The grid path: the springs as stencils, the near stencil of self-collision."""
         model, n = self.model, self.model.num_points
         cloth = model.cloths[0]
-        rows, cols = cloth.grid
         if first is not None and not self.is_compiled(*first):
             prewarm.start(self.variant(*first))
-        self.springs = build_stencil(model.rest_positions, model.pinned, rows, cols)
-        self._points(max(cloth.width, cloth.height))
+        gravity = first[1].gravity if first is not None else (0.0, -1.0, 0.0)
+        order, (rows, cols) = grid_order(model.rest_positions, cloth.grid, self.parts, gravity)
+        self._points(max(cloth.width, cloth.height), order)
+        self.transposed = (rows, cols) != tuple(cloth.grid)
+        """whether the grid's points are held column by column (see :func:`grid_order`)"""
+        rest, pinned = self.points.rest, self.points.free == 0.0
+        self.springs = build_stencil(rest, pinned, rows, cols)
         self._forces = force_buffer(self.springs, n)
         self._wind = wind_buffer(n, cols)
-        skin = skin_factor(model.rest_positions, rows, cols, cloth.thickness)
-        near = near_stencil(model.rest_positions, rows, cols, cloth.thickness, skin)
+        skin = skin_factor(rest, rows, cols, cloth.thickness)
+        near = near_stencil(rest, rows, cols, cloth.thickness, skin)
         self.lists = NeighbourList.allocate(n, cols, near, self.parts, skin)
         self._advance = advance if self.parts == 1 else advance_parallel
 
@@ -117,7 +156,8 @@ class ClothSolver:
             prewarm.start(self.variant(*first))
         self.springs = build_mesh_springs(model, self.parts)
         self.pulls = build_mesh_pulls(model)
-        self._points(max(model.size, 1e-9))
+        self._points(max(model.size, 1e-9), np.arange(n))
+        self.transposed = False
         self._forces = rows_buffer(n)
         self._wind = np.zeros((3, n))
         starts = [c.start for c in model.cloths] + [n]
@@ -202,6 +242,10 @@ class ClothSolver:
               limit2: float) -> tuple[float, int]:
         """the compiled call of :meth:`step_frames` (0 frames: of :meth:`load`)"""
         springs = (self.springs,) if self.path == "grid" else (self.springs, self.pulls)
+        if self.transposed:  # the held point and the handles' points, in the solver's slots
+            moved = control.moved_points
+            control = control._replace(handle=int(self._slot[control.handle]) if control.handle >= 0 else -1,
+                                       moved_points=None if moved is None else self._slot[moved])
         frame_run = FrameRun(substeps=int(substeps), frames=int(frames), limit2=float(limit2))
         far2, pairs, done = self._advance(state.positions, state.last_positions, self.points, *springs,
                                           self.knobs(params), control, self.lists, self.lists.pairs,

@@ -32,6 +32,10 @@ class Points(NamedTuple):
     """[m]: a spread of the points beyond which the run has blown up and self-collision stops looking"""
     triangles: np.ndarray
     """the cloths' triangles, int32 (T, 3): the wind acts on each"""
+    order: np.ndarray
+    """the model's point in each of the solver's slots, int64 (N,): the grid path
+    may hold the grid's points column by column (see
+    :func:`~.cloth_solver.grid_order`); the general path holds them in order"""
 
 
 class Knobs(NamedTuple):

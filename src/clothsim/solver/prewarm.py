@@ -89,7 +89,7 @@ def calls(variant: str) -> list:
     from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
     from .selfcollide.slack import label_pairs
     from .springs import build_stencil, force_buffer, gather_ahead, integrate
-    from .step import _farthest, _from_planes, _to_planes
+    from .step import _farthest, _from_planes, _gather_planes, _scatter_planes, _to_planes
     from ..mesh import vertex_normals
 
     features = set(variant.split("+")[1:])
@@ -100,10 +100,12 @@ def calls(variant: str) -> list:
     rest = np.stack([i.ravel() * 0.1, np.ones(n), j.ravel() * 0.1], axis=1)
     pinned = np.zeros(n, dtype=bool)
     triangles = np.array([[0, 1, 4]], dtype=np.int32)
-    for a in (rest, pinned, triangles):
+    order = np.arange(n)
+    for a in (rest, pinned, triangles, order):
         a.setflags(write=False)  # as the model's arrays are
     springs = build_stencil(rest, pinned, rows, cols)
-    points = Points(rest=rest, free=np.ones(n), thickness=0.01, center=np.zeros(3), span=1e3, triangles=triangles)
+    points = Points(rest=rest, free=np.ones(n), thickness=0.01, center=np.zeros(3), span=1e3, triangles=triangles,
+                    order=order)
     knobs = Knobs(gravity=np.zeros(3), k_over_m=np.ones(6), enabled=np.ones(6, dtype=bool), keep=1.0,
                   dt2=1e-6, simulation_steps=1, self_collision=True, inv_mass=np.ones(n))
     world = _world(features, n)
@@ -149,6 +151,8 @@ def calls(variant: str) -> list:
                 (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero))]
     out += [(_to_planes, (np.zeros((n, 3)), P)),
             (_from_planes, (P, np.zeros((n, 3)))),
+            (_gather_planes, (np.zeros((n, 3)), P, points.order)),
+            (_scatter_planes, (P, np.zeros((n, 3)), points.order)),
             (vertex_normals, (np.zeros((n, 3)), triangles, np.zeros((n, 3))))]
     return out
 

@@ -61,6 +61,24 @@ def _from_planes(P, pos):
             pos[p, c] = P[c, p]
 
 
+@njit(cache=True, boundscheck=False)
+def _gather_planes(pos, P, order):
+    """(N, 3) positions into (3, N) planes, slot k taking point ``order[k]``"""
+    for k in range(order.shape[0]):
+        p = order[k]
+        for c in range(3):
+            P[c, k] = pos[p, c]
+
+
+@njit(cache=True, boundscheck=False)
+def _scatter_planes(P, pos, order):
+    """the planes back into (N, 3) positions: :func:`_gather_planes` undone"""
+    for k in range(order.shape[0]):
+        p = order[k]
+        for c in range(3):
+            pos[p, c] = P[c, k]
+
+
 def _advance(positions, last_positions, points, springs, knobs, control, lists, pairs, scratch, frame_run):
     """Run the frames of ``frame_run`` (a :class:`~.groups.FrameRun`) on
     ``positions``/``last_positions`` (N, 3) [m] in place.
@@ -99,8 +117,9 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     ahead = springs.ahead
     cols = springs.end[1]  # set 1 joins each point to the one a row down
     parts = masks.shape[0]
-    _to_planes(positions, P)
-    _to_planes(last_positions, L)
+    # the grid path's slots may hold the points column by column (points.order)
+    _gather_planes(positions, P, points.order)
+    _gather_planes(last_positions, L, points.order)
     n = P.shape[1]
     # every call takes its ranges as variables, never as constants: numba
     # compiles a kernel once per distinct literal argument, and the first run
@@ -150,8 +169,8 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
         done += 1
         if far2 == np.inf or not far2 <= limit2:
             break
-    _from_planes(P, positions)
-    _from_planes(L, last_positions)
+    _scatter_planes(P, positions, points.order)
+    _scatter_planes(L, last_positions, points.order)
     return far2, pairs, done
 
 
