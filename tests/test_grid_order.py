@@ -65,14 +65,16 @@ def test_the_transposed_grid_moves_the_cloth_as_the_rows_do(monkeypatch, scene, 
     np.testing.assert_allclose(runs[True], runs[False], rtol=0, atol=1e-10)
 
 
-def test_handles_and_the_held_point_keep_the_models_numbers():
+@pytest.mark.parametrize("overrides", [[], ["cloth.num_height_points=48"]], ids=["48x36", "square"])
+def test_handles_and_the_held_point_keep_the_models_numbers(overrides):
     """the curtain (upright, handles along its top row) on two parts, held column by
     column: its handles' points are where they are on one part, row by row (the
     handles place them, whatever the cloth does), and a point the user holds is
-    where the user holds it"""
+    where the user holds it. A square grid transposed keeps its shape, so the
+    solver must tell a transposed grid by its slots, not by its rows and columns."""
     runs = {}
     for threads in (1, 2):
-        sim = Simulation.from_file(scene_path("curtain"), threads=threads)
+        sim = Simulation.from_file(scene_path("curtain"), overrides, threads=threads)
         assert sim.solver.transposed is (threads == 2)
         held = sim.model.num_points // 2 + 7
         target = sim.model.rest_positions[held] + np.array([0.05, 0.1, 0.2])

@@ -138,7 +138,7 @@ class ClothSolver:
         gravity = first[1].gravity if first is not None else (0.0, -1.0, 0.0)
         order, (rows, cols) = grid_order(model.rest_positions, cloth.grid, self.parts, gravity)
         self._points(max(cloth.width, cloth.height), order)
-        self.transposed = (rows, cols) != tuple(cloth.grid)
+        self.transposed = bool((order != np.arange(n)).any())
         """whether the grid's points are held column by column (see :func:`grid_order`)"""
         rest, pinned = self.points.rest, self.points.free == 0.0
         self.springs = build_stencil(rest, pinned, rows, cols)
