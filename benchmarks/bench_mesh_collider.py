@@ -60,7 +60,7 @@ from clothsim.solver.colliders.mesh import (  # noqa: E402
 from clothsim.solver.groups import Control  # noqa: E402
 from clothsim.solver.provot import provot  # noqa: E402
 from clothsim.solver.springs import integrate  # noqa: E402
-from clothsim.solver.step import _to_planes  # noqa: E402
+from clothsim.solver.step import _gather_planes  # noqa: E402
 from clothsim.standard_scenes import scene_path  # noqa: E402
 
 CLOTH = Path(clothsim.__file__).resolve().parent / "scenes" / "pinned2.json"
@@ -125,8 +125,8 @@ class Drape:
         self.none = self.ctl._replace(mesh_hints=np.full((1, 0), -1, np.int32))
         self.hints = self.ctl.mesh_hints.copy()
         P, L = np.zeros_like(solver.scratch.P), np.zeros_like(solver.scratch.L)
-        _to_planes(sim.state.positions, P)
-        _to_planes(sim.state.last_positions, L)
+        _gather_planes(sim.state.positions, P, solver.points.order)
+        _gather_planes(sim.state.last_positions, L, solver.points.order)
         self.free = solver.points.free
         n = P.shape[1]
         self.span = np.int64(0), np.int64(n), np.int64(0)

@@ -12,7 +12,7 @@ from .meshsprings import mesh_provot
 from .pull_lanes import LANES
 from .selfcollide import self_collide
 from .shared import part_range, renamed
-from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _from_planes, _hold, _to_planes
+from .step import ADVANCE_OPTIONS, _copy_range, _farthest, _gather_planes, _hold, _scatter_planes
 from .wind import blow, frame_row
 
 
@@ -51,8 +51,8 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
     self_collision = mesh_knobs.self_collision
     part_start = mesh_springs.part_start
     parts = part_start.shape[0] - 2
-    _to_planes(positions, P)
-    _to_planes(last_positions, L)
+    _gather_planes(positions, P, points.order)
+    _gather_planes(last_positions, L, points.order)
     n = P.shape[1]
     eights = (n + LANES - 1) // LANES
     refresh_constants(mesh_pulls, mesh_knobs.k_over_m)
@@ -97,8 +97,8 @@ def _advance_mesh(positions, last_positions, points, mesh_springs, mesh_pulls, m
         done += 1
         if far2 == np.inf or not far2 <= limit2:
             break
-    _from_planes(P, positions)
-    _from_planes(L, last_positions)
+    _scatter_planes(P, positions, points.order)
+    _scatter_planes(L, last_positions, points.order)
     return far2, pairs, done
 
 

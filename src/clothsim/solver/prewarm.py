@@ -89,7 +89,7 @@ def calls(variant: str) -> list:
     from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
     from .selfcollide.slack import label_pairs
     from .springs import build_stencil, force_buffer, gather_ahead, integrate
-    from .step import _farthest, _from_planes, _gather_planes, _scatter_planes, _to_planes
+    from .step import _farthest, _gather_planes, _scatter_planes
     from ..mesh import vertex_normals
 
     features = set(variant.split("+")[1:])
@@ -149,9 +149,7 @@ def calls(variant: str) -> list:
                              wind_buffer(n, cols), zero, springs.end[1])),
                 (gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
                 (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero))]
-    out += [(_to_planes, (np.zeros((n, 3)), P)),
-            (_from_planes, (P, np.zeros((n, 3)))),
-            (_gather_planes, (np.zeros((n, 3)), P, points.order)),
+    out += [(_gather_planes, (np.zeros((n, 3)), P, points.order)),
             (_scatter_planes, (P, np.zeros((n, 3)), points.order)),
             (vertex_normals, (np.zeros((n, 3)), triangles, np.zeros((n, 3))))]
     return out

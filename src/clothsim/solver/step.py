@@ -48,22 +48,10 @@ def _farthest(P, center):
 
 
 @njit(cache=True, boundscheck=False)
-def _to_planes(pos, P):
-    for p in range(pos.shape[0]):
-        for c in range(3):
-            P[c, p] = pos[p, c]
-
-
-@njit(cache=True, boundscheck=False)
-def _from_planes(P, pos):
-    for p in range(pos.shape[0]):
-        for c in range(3):
-            pos[p, c] = P[c, p]
-
-
-@njit(cache=True, boundscheck=False)
 def _gather_planes(pos, P, order):
-    """(N, 3) positions into (3, N) planes, slot k taking point ``order[k]``"""
+    """(N, 3) positions into (3, N) planes, slot k taking point ``order[k]``: the
+    kernels' layout, in the solver's slots (``Points.order``; the identity but
+    on a grid held column by column, see :func:`~.cloth_solver.grid_order`)"""
     for k in range(order.shape[0]):
         p = order[k]
         for c in range(3):
