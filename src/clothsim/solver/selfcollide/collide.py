@@ -120,8 +120,11 @@ def self_collide(P, points, simulation_steps, lists, pairs):
         # square (no square root per pair), in steps of the span up to the list
         # radius's square
         labels = np.empty(pairs.shape[1], dtype=np.int8)
+        # each part labels the segments it owns (see sort_by_slack): their ends are
+        # mostly its own points, whose rows it has just written
         for t in prange(parts):
-            for i in range(t, segments.shape[0], parts):
+            own, segs = np.int64(t), segments.shape[0]
+            for i in range(own * segs // parts, (own + 1) * segs // parts):
                 k0 = segments[i, 0]
                 label_pairs(rows, reach, pairs, k0, k0 + segments[i, 1], labels, (SLACK_BUCKETS - 1) / span2)
         pairs = sort_by_slack(pairs, labels, segments, meta, parts)

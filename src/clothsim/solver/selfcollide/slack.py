@@ -63,15 +63,18 @@ def sort_by_slack(pairs, labels, segments, meta, parts):
     (S, 2) rows (start, count) in ``pairs`` and ``labels``, with gaps between
     them: each share of the list build wrote its own, and the sort gathers
     them, so they are not first moved together into one run (a pass over
-    the list, on one thread). Segment i is sorted by part ``i % parts``, as
-    the build dealt out its shares, so each part sorts what it found; it is
-    owned by part ``i * parts // S``, which pushes its pairs between builds.
-    With the shares in the order of their points, a part owns the pairs
-    found from the points it moves, and reads the other parts' points only
-    for pairs that reach across: on two threads, pushing an even cut of the
-    list made each part read half its ends from lines the other core had
-    just written (docs/performance.md, 'Pairs pushed by the part that owns
-    them').
+    the list, on one thread). Segment i is owned by part ``i * parts // S``,
+    which sorts it here and pushes its pairs between builds. With the
+    shares in the order of their points, a part owns the pairs found from
+    the points it moves, and reads the other parts' points only for pairs
+    that reach across: on two threads, pushing an even cut of the list made
+    each part read half its ends from lines the other core had just written
+    (docs/performance.md, 'Pairs pushed by the part that owns them'). Each
+    part writes only into its own block of the sorted list: sorted by the
+    part that found them (``i % parts``, as the build deals its shares out),
+    the two parts' runs took turns in every bucket, and the sort took longer
+    on two threads than on one (docs/performance.md, 'Each part sorts the
+    pairs it owns').
 
     A pair of the list started ``slack`` past the reach, and it cannot touch
     before two points have come closer by that much; :func:`drift_bound`
@@ -92,7 +95,8 @@ def sort_by_slack(pairs, labels, segments, meta, parts):
     segs = segments.shape[0]
     at = np.zeros((segs, SORT_LANES + PAD_ROWS, SLACK_BUCKETS), dtype=np.int64)
     for t in prange(parts):
-        for i in range(t, segs, parts):
+        own = np.int64(t)  # prange's index is unsigned: mixed with a signed one, a float
+        for i in range(own * segs // parts, (own + 1) * segs // parts):
             lo = segments[i, 0]
             _count_runs(labels, lo, lo + segments[i, 1], at[i])
     # the list is cut into one block per part, the pairs each part owns: those
@@ -112,7 +116,8 @@ def sort_by_slack(pairs, labels, segments, meta, parts):
             meta[BUCKET + o * SLACK_BUCKETS + j] = total
     out = np.empty_like(pairs)
     for t in prange(parts):
-        for i in range(t, segs, parts):
+        own = np.int64(t)
+        for i in range(own * segs // parts, (own + 1) * segs // parts):
             lo = segments[i, 0]
             _place_runs(pairs, labels, lo, lo + segments[i, 1], at[i], out)
     return out
