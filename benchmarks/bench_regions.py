@@ -17,8 +17,7 @@ A ``"bench": "regions"`` line per stage and thread count gives µs per
 substep averaged over the run (a build's stages spread over every
 substep): ``region_us`` from before the region's start to after its join
 (for stages that run on one thread, the stage), ``parts_us`` each part's
-work in it (the pushes' application is a share of each part's work in the
-colliders' region, and has no region of its own), and ``half_of_one_thread_us`` the stage on one thread halved
+work in it, and ``half_of_one_thread_us`` the stage on one thread halved
 (on the line of more threads than one). A ``"stage": "substep"`` line gives
 the whole substep, substeps/s and the builds of the neighbour list. The
 counter's rate is taken against the wall clock over half a second; it is
@@ -84,13 +83,11 @@ STAGES = {
     14: ("self-collision: slack sort", False),
     15: ("self-collision: copy after a build", False),
     16: ("self-collision: pushes", True),
-    4: ("pushes applied, colliders and Provot", True),
-    17: ("— of which the pushes applied", None),
+    17: ("self-collision: pushes applied", True),
+    4: ("colliders and Provot", True),
     5: ("Provot across the cuts (one thread)", False),
 }
-"""the row a stage's parts add into, and whether it is a region of its own (True:
-its time is in row + 20), on one thread (False), or a share of each part's
-work in the region before (None)"""
+"""the row a stage's parts add into; its region's time is in row + 20 where it has parts"""
 
 SUBSTEPS, BUILDS, SELF_COLLISION = 6, 9, 3
 
@@ -117,8 +114,8 @@ def instrument(package: Path) -> None:
     """Insert the counter's reads into the copy of clothsim at ``package``."""
     (package / "solver" / "region_timer.py").write_text(TIMER)
     step = package / "solver" / "step.py"
-    edits = [("from .selfcollide import collide_pairs",
-              "from .selfcollide import collide_pairs\nfrom .region_timer import acc_view, rdtsc"),
+    edits = [("from .selfcollide import self_collide",
+              "from .selfcollide import self_collide\nfrom .region_timer import acc_view, rdtsc"),
              ("    while done < frames:\n", "    acc = acc_view()\n    while done < frames:\n"),
              *_region(" " * 12, 0, "for t in prange(parts):", "lo, hi = _chunk_range(n, parts, t)\n" + " " * 16
                       + "integrate(", "integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + "
@@ -127,17 +124,13 @@ def instrument(package: Path) -> None:
               "                gather_ahead(",
               "            r1 = rdtsc()\n            for t in range(1, parts):\n"
               "                lo, hi = _chunk_range(n, parts, t)\n                gather_ahead("),
-             ("            dense = False\n            if self_collision:\n                pairs, _, dense = "
-              "collide_pairs(P, points, simulation_steps, lists, pairs)\n",
+             ("            if self_collision:\n                pairs, _ = self_collide(P, points, simulation_steps,"
+              " lists, pairs)\n",
               "            acc[1, 0] += rdtsc() - r1\n            r1 = rdtsc()\n"
-              "            dense = False\n            if self_collision:\n                pairs, _, dense = "
-              "collide_pairs(P, points, simulation_steps, lists, pairs)\n            acc[3, 0] += rdtsc() - r1\n"),
+              "            if self_collision:\n                pairs, _ = self_collide(P, points, simulation_steps,"
+              " lists, pairs)\n            acc[3, 0] += rdtsc() - r1\n"),
              *_region(" " * 12, 4, "for t in prange(parts):", "lo, hi = _chunk_range(n, parts, t)\n" + " " * 16
-                      + "if dense:", "provot(P, springs, enabled, masks[t], lo, hi, False)"),
-             ("                if dense:\n                    apply_pushes(P, push, count, free, inv_steps, lo, hi)\n",
-              "                s1 = rdtsc()\n                if dense:\n"
-              "                    apply_pushes(P, push, count, free, inv_steps, lo, hi)\n"
-              "                acc[17, t * 8] += rdtsc() - s1\n"),
+                      + "collide(", "provot(P, springs, enabled, masks[t], lo, hi, False)"),
              ("            for t in range(1, parts):\n                lo, _ = _chunk_range(n, parts, t)\n"
               "                provot(P, springs, enabled, masks[0], lo, lo, True)\n",
               "            r1 = rdtsc()\n            for t in range(1, parts):\n"
@@ -164,7 +157,9 @@ def instrument(package: Path) -> None:
              ("        meta[REBUILDS] += 1\n", "        meta[REBUILDS] += 1\n        acc[15, 0] += rdtsc() - r1\n"),
              *_region(" " * 4, 16, "for t in prange(parts):", "own = np.int64(t)  # prange's index is unsigned: "
                       "with the 1 below, a float", "tally[t, 1] = h + pair_pushes(P, reach, pairs, sure, sure, "
-                      "checked, lists, t, h, wide2)")]
+                      "checked, lists, t, h, wide2)"),
+             *_region(" " * 12, 17, "for t in prange(parts):", "lo, hi = part_range(n, parts, t)\n" + " " * 16
+                      + "apply_pushes(", "apply_pushes(P, push, count, free, inv_steps, lo, hi)")]
     collide.write_text(_patch(collide.read_text(), edits, "solver/selfcollide/collide.py"))
 
 
@@ -206,13 +201,12 @@ def child(size: int, threads: list[int], seconds: float) -> None:
             return round(float(acc[row, 0]) * us, 2)
 
         for row, (stage, parted) in STAGES.items():
-            line = {"bench": "regions", "stage": stage, "threads": t}
-            if parted is not None:
-                line["region_us"] = one(row + 20) if parted else one(row)
-            if parted is not False:
+            line = {"bench": "regions", "stage": stage, "threads": t,
+                    "region_us": one(row + 20) if parted else one(row)}
+            if parted:
                 line["parts_us"] = [round(float(v) * us, 2) for v in acc[row, ::8][:sim.solver.parts]]
             if t == 1:
-                halves[stage] = line["region_us"] / 2 if parted is not None else line["parts_us"][0] / 2
+                halves[stage] = line["region_us"] / 2
             elif stage in halves:
                 line["half_of_one_thread_us"] = round(halves[stage], 2)
             emit({**line, **info})

@@ -35,28 +35,20 @@ def test_every_stage_is_timed_on_each_thread_count(lines):
         assert set(stages) == {s for s, _ in bench_regions.STAGES.values()} | {"substep"}
         whole = stages.pop("substep")
         assert whole["parts"] == parts and whole["builds"] >= 1 and whole["substeps_per_s"] > 0
-        region = None
         for stage, (_, parted) in zip(stages.values(), bench_regions.STAGES.values()):
-            if parted is None:  # a share of each part's work in the region before
-                assert len(stage["parts_us"]) == parts
-                assert all(0.0 <= a <= b + 0.01 for a, b in zip(stage["parts_us"], region["parts_us"]))
-                continue
             assert stage["region_us"] >= 0.0
             if parted:
                 assert len(stage["parts_us"]) == parts
                 # a region holds its parts: the slowest cannot take longer
                 assert stage["region_us"] >= max(stage["parts_us"]) - 0.01
-                region = stage
         # the springs, the colliders and Provot run every substep and cost something
-        assert stages["springs and Verlet"]["region_us"] > 0
-        assert stages["pushes applied, colliders and Provot"]["region_us"] > 0
+        assert stages["springs and Verlet"]["region_us"] > 0 and stages["colliders and Provot"]["region_us"] > 0
         # stages that do not overlap add up to no more than the substep (2% for the counter's rate)
         spans = ["springs and Verlet", "the points ahead of each cut, handles and wind (one thread)",
-                 "pushes applied, colliders and Provot", "Provot across the cuts (one thread)"]
+                 "colliders and Provot", "Provot across the cuts (one thread)"]
         total = sum(stages[s]["region_us"] for s in spans) + whole["self_collision_us"]
         assert total <= 1.02 * whole["us_per_substep"]
         inside = sum(stages[s]["region_us"] for s in stages if s.startswith("self-collision"))
-        assert stages["— of which the pushes applied"]["parts_us"][0] > 0  # the cloth piles up: pushes every substep
         assert inside <= whole["self_collision_us"] + 0.01
     two = [d for d in lines if d["threads"] == 2 and d["stage"] != "substep"]
     assert all(d["half_of_one_thread_us"] >= 0 for d in two)

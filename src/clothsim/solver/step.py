@@ -11,8 +11,7 @@ from .handles import place_handles
 from .wind import blow_grid, frame_row
 from .provot import provot
 from .springs import CHUNK, gather_ahead, integrate
-from .selfcollide import collide_pairs
-from .selfcollide.pushes import apply_pushes
+from .selfcollide import self_collide
 from .shared import renamed
 
 PARALLEL_MIN_POINTS = 5000
@@ -115,7 +114,6 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     # of a scene paid for each. Provot's switch is the exception: compiled for
     # each value, its pass ran faster
     W, Q = scratch.W, scratch.Q
-    push, count, inv_steps = lists.push, lists.count, 1.0 / simulation_steps
     settling = has_settle(control)
     copying = settle_needs_q(control)
     substeps, frames, limit2 = frame_run.substeps, frame_run.frames, frame_run.limit2
@@ -137,15 +135,10 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
             place_handles(P, control.moved_points, control.moved_to, slot)
             blow_grid(P, L, free, springs.valid[0], knobs.inv_mass, knobs.dt2, frame_row(control.wind, done), W, s,
                       cols)
-            dense = False
             if self_collision:
-                pairs, _, dense = collide_pairs(P, points, simulation_steps, lists, pairs)
-            # each part moves its points by their pushes (where self-collision left
-            # them summed), then collides and constrains them: one region, not two
+                pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
-                if dense:
-                    apply_pushes(P, push, count, free, inv_steps, lo, hi)
                 collide(P, L, free, control, lo, hi, slot)
                 if copying:
                     _copy_range(P, Q, lo, hi)

@@ -30,7 +30,7 @@ Positions are (3, N) coordinate planes; ``rest`` is the (N, 3) start layout.
 """
 
 from .buffers import NeighbourList
-from .collide import collide_pairs, self_collide
+from .collide import self_collide
 from .nearstencil import near_stencil, skin_factor
 
-__all__ = ["NeighbourList", "collide_pairs", "near_stencil", "self_collide", "skin_factor"]
+__all__ = ["NeighbourList", "near_stencil", "self_collide", "skin_factor"]

@@ -21,36 +21,12 @@ from .slack import checked_pairs, label_pairs, sort_by_slack
 
 @njit(**EXACT_OPTIONS, inline="always")
 def self_collide(P, points, simulation_steps, lists, pairs):
-    """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions):
-    :func:`collide_pairs`, then the points moved by their pushes where it left
-    that to its caller. Returns (pairs array, number of colliding pairs)."""
-    pairs, hits, dense = collide_pairs(P, points, simulation_steps, lists, pairs)
-    if dense:
-        push, count, free = lists.push, lists.count, points.free
-        n, parts = P.shape[1], push.shape[0]
-        inv_steps = 1.0 / simulation_steps
-        for t in prange(parts):
-            lo, hi = part_range(n, parts, t)
-            apply_pushes(P, push, count, free, inv_steps, lo, hi)
-    return pairs, hits
-
-
-@njit(**EXACT_OPTIONS, inline="always")
-def collide_pairs(P, points, simulation_steps, lists, pairs):
-    """Find the pairs closer than 2*thickness and sum their pushes (Jacobi: all from
-    the same positions).
+    """Push apart pairs closer than 2*thickness (Jacobi: all from the same positions).
 
     Each pair pushes both ends; a point's pushes are averaged over its
     colliding neighbours and divided by ``simulation_steps``; pinned points
-    (``free`` 0) stay. Returns (pairs array, number of colliding pairs,
-    ``dense``); the array is a new one after each build (see
-    :func:`sort_by_slack`). Where a few pairs collide, their ends are moved
-    here; where many do (``dense`` True), every point's pushes are left
-    summed in ``lists.push`` and ``lists.count`` for the caller to apply
-    with :func:`~.pushes.apply_pushes`, range by range, in a region of its
-    own next stage: a parallel region of their own cost two threads more to
-    start and join than the pass itself (docs/performance.md, 'The pushes
-    applied in the colliders' region'). When
+    (``free`` 0) stay. Returns (pairs array, number of colliding pairs); the
+    array is a new one after each build (see :func:`sort_by_slack`). When
     the points are spread wider than ``span`` [m] (a run that blew up) no
     list is built and nothing is pushed.
 
@@ -98,7 +74,7 @@ def collide_pairs(P, points, simulation_steps, lists, pairs):
                 grids[t, c] = grid[c]
         if grids[0, 3] == 0.0:
             meta[VALID] = 0
-            return pairs, 0, False
+            return pairs, 0
         # the points are cut into more shares than parts, dealt out in turn: the
         # cost of a share depends on how crowded its part of the cloth is
         shares = tally.shape[0]
@@ -160,7 +136,7 @@ def collide_pairs(P, points, simulation_steps, lists, pairs):
         meta[VALID] = 1
         meta[REBUILDS] += 1
     if meta[VALID] == 0:
-        return pairs, 0, False
+        return pairs, 0
     # every substep checks the pairs whose slack the drift bound reaches, on
     # the substep of a build the touching ones
     reachable = ((reach + bound) ** 2 - reach * reach) * (1.0 + 1e-6) / span2
@@ -186,10 +162,15 @@ def collide_pairs(P, points, simulation_steps, lists, pairs):
     for t in range(parts):
         hits += tally[t, 1]
         most = max(most, tally[t, 1])
-    if hits > 0 and most <= SPARSE_PAIRS:
-        apply_sparse(P, push, count, free, 1.0 / simulation_steps, touched, tally)
-        return pairs, hits, False
-    return pairs, hits, hits > 0
+    if hits > 0:
+        inv_steps = 1.0 / simulation_steps
+        if most <= SPARSE_PAIRS:
+            apply_sparse(P, push, count, free, inv_steps, touched, tally)
+        else:
+            for t in prange(parts):
+                lo, hi = part_range(n, parts, t)
+                apply_pushes(P, push, count, free, inv_steps, lo, hi)
+    return pairs, hits
 
 
 @njit(cache=True)
