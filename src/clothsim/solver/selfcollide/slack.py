@@ -73,8 +73,8 @@ def sort_by_slack(pairs, labels, segments, meta, parts):
     part writes only into its own block of the sorted list: sorted by the
     part that found them (``i % parts``, as the build deals its shares out),
     the two parts' runs took turns in every bucket, and the sort took longer
-    on two threads than on one (docs/performance.md, 'Each part sorts the
-    pairs it owns').
+    on two threads than on one (docs/performance.md, 'Where two threads'
+    substep goes').
 
     A pair of the list started ``slack`` past the reach, and it cannot touch
     before two points have come closer by that much; :func:`drift_bound`
