@@ -130,8 +130,11 @@ class Drape:
         self.free = solver.points.free
         n = P.shape[1]
         self.span = np.int64(0), np.int64(n), np.int64(0)
-        integrate(P, L, self.free, knobs, solver.springs, solver.scratch.F, self.span[0], self.span[1], self.span[0])
-        self.before, self.L = P, L  # the substep's positions before the colliders, and its last ones
+        integrate(P, L, self.free, knobs, solver.springs, solver.scratch.F[0], self.span[0], self.span[1],
+                  self.span[0])
+        # the step wrote the new positions over the last ones: the substep's positions
+        # before the colliders, and its last ones
+        self.before, self.L = L, P
         self.Q = P.copy()
         collide_meshes(self.Q, L, self.free, self.ctl._replace(mesh_hints=self.hints.copy()), *self.span)
         self.after = self.Q.copy()

@@ -75,7 +75,7 @@ def acc_view():
 STAGES = {
     # row of ACC: (stage, whether its parts are timed too)
     0: ("springs and Verlet", True),
-    1: ("the points ahead of each cut, handles and wind (one thread)", False),
+    1: ("handles and wind (one thread)", False),
     10: ("self-collision: copy and drift test", False),
     11: ("self-collision: cell sort", True),
     12: ("self-collision: query", True),
@@ -118,12 +118,9 @@ def instrument(package: Path) -> None:
               "from .selfcollide import self_collide\nfrom .region_timer import acc_view, rdtsc"),
              ("    while done < frames:\n", "    acc = acc_view()\n    while done < frames:\n"),
              *_region(" " * 12, 0, "for t in prange(parts):", "lo, hi = _chunk_range(n, parts, t)\n" + " " * 16
-                      + "integrate(", "integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + "
-                      "ahead, hi))"),
-             ("            for t in range(1, parts):\n                lo, hi = _chunk_range(n, parts, t)\n"
-              "                gather_ahead(",
-              "            r1 = rdtsc()\n            for t in range(1, parts):\n"
-              "                lo, hi = _chunk_range(n, parts, t)\n                gather_ahead("),
+                      + "integrate(", "integrate(P, L, free, knobs, springs, F[t], max(lo - ahead, 0), hi, lo)"),
+             ("            P, L = L, P  # the new positions were written over the last ones\n",
+              "            P, L = L, P  # the new positions were written over the last ones\n            r1 = rdtsc()\n"),
              ("            if self_collision:\n                pairs, _ = self_collide(P, points, simulation_steps,"
               " lists, pairs)\n",
               "            acc[1, 0] += rdtsc() - r1\n            r1 = rdtsc()\n"

@@ -79,7 +79,7 @@ def _springs(P, L, free, knobs, springs, F, masks):
     n = P.shape[1]
     for t in prange(parts):
         lo, hi = _chunk_range(n, parts, t)
-        integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + springs.ahead, hi))
+        integrate(P, L, free, knobs, springs, F[t], max(lo - springs.ahead, 0), hi, lo)
 
 
 def _provot(P, springs, enabled, masks):
@@ -227,9 +227,9 @@ def spring_stages(rounds: int, info: dict) -> None:
     n = s.P.shape[1]
     slots = int(springs.count.sum())
     calls = {
-        "spring forces": lambda: spring_forces(s.P, knobs.k_over_m, springs, s.F, 0, n),
-        "gather and Verlet": lambda: verlet_gather(s.P, s.L, free, knobs, springs, s.F, 0, n, True),
-        "springs and Verlet": lambda: integrate(s.P, s.L, free, knobs, springs, s.F, 0, n, 0),
+        "spring forces": lambda: spring_forces(s.P, knobs.k_over_m, springs, s.F[0], 0, n),
+        "gather and Verlet": lambda: verlet_gather(s.P, s.L, free, knobs, springs, s.F[0], 0, n, True),
+        "springs and Verlet": lambda: integrate(s.P, s.L, free, knobs, springs, s.F[0], 0, n, 0),
         "Provot": lambda: provot(s.P, springs, knobs.enabled, s.masks[0], 0, n, False),
         "Provot check": lambda: provot_check(s.P, springs, s.masks[0]),
     }
@@ -239,7 +239,7 @@ def spring_stages(rounds: int, info: dict) -> None:
         line(stage, "pinned2", "50x50", 1, us, n if points else slots, "points" if points else "springs", info)
     # what each figure above spends in the call from Python (unboxing the groups'
     # arrays), which the compiled substep does not pay: the force call on no points
-    us = best_us(lambda: spring_forces(s.P, knobs.k_over_m, springs, s.F, 0, 0), copy, 2000, rounds)
+    us = best_us(lambda: spring_forces(s.P, knobs.k_over_m, springs, s.F[0], 0, 0), copy, 2000, rounds)
     emit({"bench": "stage", "stage": "call from Python, no work", "scene": "pinned2", "grid": "50x50",
           "threads": 1, "us_per_call": round(us, 2), **info})
     # the Provot pass as a run meets it a second in, on the positions a
@@ -248,8 +248,9 @@ def spring_stages(rounds: int, info: dict) -> None:
     for _ in range(80):
         sim.step()
     copy = Copy(sim)
-    integrate(s.P, s.L, free, knobs, springs, s.F, 0, n, 0)
-    copy.P0, copy.L0 = s.P.copy(), s.L.copy()
+    integrate(s.P, s.L, free, knobs, springs, s.F[0], 0, n, 0)
+    copy.P0, copy.L0 = s.L.copy(), s.P.copy()  # the step wrote the new positions over the last ones
+    copy.reset()
     over = sum(int(np.count_nonzero(gap2_all(s.P, springs, t) > springs.limit[t, :springs.count[t]] ** 2))
                for t in range(6))
     for stage, call in (("Provot, after 1 s", calls["Provot"]), ("Provot check, after 1 s", calls["Provot check"])):

@@ -44,7 +44,7 @@ def test_every_stage_is_timed_on_each_thread_count(lines):
         # the springs, the colliders and Provot run every substep and cost something
         assert stages["springs and Verlet"]["region_us"] > 0 and stages["colliders and Provot"]["region_us"] > 0
         # stages that do not overlap add up to no more than the substep (2% for the counter's rate)
-        spans = ["springs and Verlet", "the points ahead of each cut, handles and wind (one thread)",
+        spans = ["springs and Verlet", "handles and wind (one thread)",
                  "colliders and Provot", "Provot across the cuts (one thread)"]
         total = sum(stages[s]["region_us"] for s in spans) + whole["self_collision_us"]
         assert total <= 1.02 * whole["us_per_substep"]

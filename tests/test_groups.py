@@ -118,7 +118,7 @@ def group_reads(node: ast.FunctionDef) -> dict[str, set[str]]:
 
 def test_the_kernels_are_found():
     """the scan sees the substep and every stage's kernels (a scan that finds nothing checks nothing)"""
-    for name in ("_advance", "integrate", "gather_ahead", "provot", "collide", "collide_spheres",
+    for name in ("_advance", "integrate", "provot", "collide", "collide_spheres",
                  "collide_planes", "self_collide", "sort_into_cells", "query_points", "build_list"):
         assert name in KERNELS, name
     assert len(KERNELS) > 40
@@ -275,7 +275,7 @@ def test_a_field_renamed_on_one_side_fails_the_checks():
     group, the kernels read a field it lacks and the new one goes unread"""
     assert {"k_over_m", "keep"} <= set(Knobs._fields)
     edited = dict(TREES)
-    for kernel in ("integrate", "integrate_chunks", "integrate_eights", "gather_ahead"):
+    for kernel in ("integrate", "integrate_chunks", "integrate_eights"):
         source = textwrap.dedent(inspect.getsource(KERNELS[kernel])).replace("knobs.k_over_m", "knobs.k_per_m")
         edited[kernel] = ast.parse(source).body[0]
     assert unknown_fields(edited["integrate"], FIELDS) == {"knobs": {"k_per_m"}}

@@ -216,6 +216,7 @@ def stretch_without_provot(sim: Simulation) -> float:
             P, L = L, P
         else:
             integrate(P, L, solver.points.free, knobs, solver.springs, F, 0, n, 0)
+            P, L = L, P  # the step wrote the new positions over the last ones
         if step % 30 == 29:
             sim.state.positions[:] = P.T
             worst = max(worst, stretch(sim).max())

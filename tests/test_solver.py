@@ -28,7 +28,7 @@ from clothsim.solver.selfcollide.slack import PAD_ROWS, SORT_LANES, _count_runs,
 from clothsim.solver.shared import BLOCK
 from clothsim.solver.simd import FORCE_PORTABLE, has_compress
 from clothsim.solver.springs import (AHEAD_STEP, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
-                                     gather_ahead, integrate)
+                                     integrate, part_force_buffers)
 from clothsim.solver.step import _chunk_range
 
 
@@ -51,9 +51,14 @@ def knobs(k_sets, gravity, keep, dt2):
 
 
 def run_integrate(P, L, free, k, springs, F):
-    """one step of integrate() over the whole cloth"""
+    """one step of integrate() over the whole cloth, P then holding the new
+    positions and L the last ones (integrate writes the new over the last, and
+    the substep swaps the two)"""
     n = P.shape[1]
+    before = P.copy()
     integrate(P, L, free, k, springs, F, 0, n, 0)
+    np.testing.assert_array_equal(P, before)  # read only
+    P[:], L[:] = L.copy(), before
 
 
 def planes(pos: np.ndarray) -> np.ndarray:
@@ -145,11 +150,12 @@ def test_slots_without_a_spring_add_no_force(nw, nh):
 
 @pytest.mark.parametrize("nw,nh,parts", [(40, 30, 2), (70, 40, 3), (9, 6, 2)])
 def test_parts_move_their_points_as_the_whole_cloth_does(nw, nh, parts):
-    """cut into parts as the threads take them, each part leaving the first
-    ``ahead`` points of its range to gather_ahead: run the parts last to first
-    (a part's points moved before the part before it reads them, the worst
-    order threads could take) and the step is still the whole cloth's, bit
-    for bit. ``ahead`` covers the springs' reach and no more than a vector past it"""
+    """cut into parts as the threads take them, each part working out the forces
+    of the ``ahead`` springs before its range as well, in a buffer of its own:
+    run the parts last to first (a part's points stepped before the part
+    before it reads them, the worst order threads could take) and the step is
+    still the whole cloth's, bit for bit. ``ahead`` covers the springs' reach
+    and no more than a vector past it"""
     m = grid_model(nw, nh)
     st = stencil(m)
     assert st.end.max() <= st.ahead < st.end.max() + AHEAD_STEP
@@ -162,13 +168,10 @@ def test_parts_move_their_points_as_the_whole_cloth_does(nw, nh, parts):
     P0, L0 = planes(pos), planes(m.rest_positions)
     whole_P, whole_L = P0.copy(), L0.copy()
     integrate(whole_P, whole_L, free, k, st, force_buffer(st, n), 0, n, 0)
-    P, L, F = P0.copy(), L0.copy(), force_buffer(st, n)
+    P, L, F = P0.copy(), L0.copy(), part_force_buffers(st, n, parts)
     for t in reversed(range(parts)):
         lo, hi = _chunk_range(n, parts, t)
-        integrate(P, L, free, k, st, F, lo, hi, lo if t == 0 else min(lo + st.ahead, hi))
-    for t in range(1, parts):
-        lo, hi = _chunk_range(n, parts, t)
-        gather_ahead(P, L, free, k, st, F, lo, min(lo + st.ahead, hi))
+        integrate(P, L, free, k, st, F[t], max(lo - st.ahead, 0), hi, lo)
     np.testing.assert_array_equal(P, whole_P)
     np.testing.assert_array_equal(L, whole_L)
 

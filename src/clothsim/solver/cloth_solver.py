@@ -18,7 +18,7 @@ from .selfcollide import NeighbourList, near_stencil, skin_factor
 from .selfcollide.nearlist import mesh_near
 from .selfcollide.nearstencil import SKIN_FACTOR
 from .shared import BLOCK
-from .springs import SET_KIND, build_stencil, force_buffer
+from .springs import SET_KIND, build_stencil, part_force_buffers
 from .step import advance, advance_parallel, parts_for
 from .wind import wind_buffer
 
@@ -142,7 +142,7 @@ class ClothSolver:
         """whether the grid's points are held column by column (see :func:`grid_order`)"""
         rest, pinned = self.points.rest, self.points.free == 0.0
         self.springs = build_stencil(rest, pinned, rows, cols)
-        self._forces = force_buffer(self.springs, n)
+        self._forces = part_force_buffers(self.springs, n, self.parts)
         self._wind = wind_buffer(n, cols)
         skin = skin_factor(rest, rows, cols, cloth.thickness)
         near = near_stencil(rest, rows, cols, cloth.thickness, skin)

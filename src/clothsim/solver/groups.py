@@ -156,7 +156,8 @@ class Scratch(NamedTuple):
     L: np.ndarray
     """last positions as coordinate planes [m], float64 (3, N)"""
     F: np.ndarray
-    """the grid path's spring forces of :func:`~.springs.integrate`, (6, 3, pad + N);
+    """the grid path's spring forces of :func:`~.springs.integrate`, a buffer a part,
+    (parts, 6, 3, pad + N);
     the general path's positions as rows (x, y, z, 0), (N, 4), that its springs'
     pass reads the far ends from (:func:`~.mesh_pulls.to_rows`)"""
     masks: np.ndarray

@@ -88,7 +88,7 @@ def calls(variant: str) -> list:
     from .selfcollide.nearstencil import near_pushes
     from .selfcollide.pushes import apply_pushes, apply_sparse, pair_pushes
     from .selfcollide.slack import label_pairs
-    from .springs import build_stencil, force_buffer, gather_ahead, integrate
+    from .springs import build_stencil, force_buffer, integrate
     from .step import _farthest, _gather_planes, _scatter_planes
     from ..mesh import vertex_normals
 
@@ -147,7 +147,6 @@ def calls(variant: str) -> list:
     else:
         out += [(blow_grid, (P, L, points.free, springs.valid[0], knobs.inv_mass, knobs.dt2, wind,
                              wind_buffer(n, cols), zero, springs.end[1])),
-                (gather_ahead, (P, L, points.free, knobs, springs, F, zero, zero)),
                 (integrate, (P, L, points.free, knobs, springs, F, zero, i64, zero))]
     out += [(_gather_planes, (np.zeros((n, 3)), P, points.order)),
             (_scatter_planes, (P, np.zeros((n, 3)), points.order)),

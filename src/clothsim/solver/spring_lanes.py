@@ -5,12 +5,12 @@ forces for a chunk of 512 points into the force buffer, then gather each
 point's twelve and move it: nine loops a chunk, the gathering reading the
 buffer back from the L2 cache. Here a numba loop walks the cloth eight
 points at a time and calls LLVM vector code that computes the six sets'
-forces of the springs that start at the eight, stores them, and moves the
+forces of the springs that start at the eight, stores them, and steps the
 eight at once (:func:`spring_step_lanes`). A point's forces come from its
 own springs, still in registers; from the springs one and two points back
 along its row, shifted across from the eight before; and from the rows
-above, stored a row or two ago and still in the L1 cache. No later eight
-reads a moved point: a spring's ends are both at its start or after it.
+above, stored a row or two ago and still in the L1 cache. The new
+positions go over the last ones (see :func:`.springs.integrate`).
 
 The arithmetic is :func:`.springs.spring_forces`' and
 :func:`.springs.verlet_gather`'s with numba's fast-math flags, the gathered
@@ -229,7 +229,7 @@ def force_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off):
 @intrinsic
 def spring_step_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off, L, free, motion):
     """:func:`force_lanes` and then the Verlet step of the same points of the
-    (3, N) planes P (moved in place) and L (set to where the points were), as
+    (3, N) planes P (read only) and L (the last positions, overwritten by the new ones), as
     :func:`.springs.verlet_gather` takes it: ``a = g + sum_s F_s[q - ends[s]]
     - F_s[q - ends[6 + s]]``, ``x' = x + free (keep (x - x_last) + a dt²)``;
     ``motion``: gravity (3) [m/s²], keep, dt² [s²]. The forces the call
@@ -265,14 +265,13 @@ def spring_step_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off,
         fr = v.load(free_t, free_v, one.at)
         for c in range(3):
             a = b.fsub(pulls[c], pushes[c], flags=IN_ORDER)
-            xp, lp = v.at(*one.P, c, one.at), v.at(L_t, L_v, c, one.at)
+            lp = v.at(L_t, L_v, c, one.at)
             xq = one.end(0, 0, c)  # set 0 starts at the point itself (checked by integrate_eights)
             # the multiply-adds LLVM makes of numba's loop, spelled out: left to
             # LLVM, this code's sum fused the other product
             velocity = b.fsub(xq, b.load(lp, align=8), flags=IN_ORDER)
             turn = v.call("fmuladd", [velocity, keep, b.fmul(a, dt2, flags=IN_ORDER)])
-            b.store(v.call("fmuladd", [turn, fr, xq]), xp, align=8)
-            b.store(xq, lp, align=8)
+            b.store(v.call("fmuladd", [turn, fr, xq]), lp, align=8)
         return context.get_dummy_value()
 
     return sig, codegen
@@ -290,7 +289,7 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
     long as eight more points lie before ``stop`` and every spring of them
     has both ends inside the cloth. Returns the point where it stopped: the
     caller's loops take the rest. The points before ``moved`` get their
-    forces and are not moved. Where ``first`` or ``moved - first`` is not a
+    forces and no step. Where ``first`` or ``moved - first`` is not a
     multiple of LANES, or the arrays are too short for a call's reads (a
     force buffer whose pad holds fewer than LANES slots, see
     :func:`.springs.force_buffer`), it does nothing and returns ``first``."""

@@ -44,10 +44,7 @@ CHUNK = 512
 
 AHEAD_STEP = 8
 """``ahead`` is rounded up to this many points, a vector of doubles at 512
-bits. Rounded up to a CHUNK, as it was, one thread moved a whole chunk of the
-next part after the loop where the springs reach two rows and two points,
-all in lines the other core had just written and fetches back the next
-substep (docs/performance.md, 'The points ahead of a cut')"""
+bits: a part's force pass then starts on a whole eight (:mod:`.spring_lanes`)"""
 
 EIGHTS = has_avx512f()
 """whether :func:`integrate` takes the cloth eight points at a time
@@ -96,9 +93,10 @@ class GridSprings(NamedTuple):
     cols: int
     """points in a grid row"""
     ahead: int
-    """points past the end of a part that its last springs reach, rounded up to
-    AHEAD_STEP: they are moved only once every part has its forces, on one
-    thread after the parts' loop (see :func:`gather_ahead`)"""
+    """how far the springs reach, rounded up to AHEAD_STEP: a thread's part
+    that moves points ``lo:hi`` also works out the forces of the springs that
+    start this many points before ``lo``, which its first points gather
+    (see :func:`integrate`)"""
 
 
 def build_stencil(rest_positions: np.ndarray, pinned: np.ndarray, rows: int, cols: int) -> GridSprings:
@@ -175,13 +173,24 @@ def force_buffer(stencil: GridSprings, num_points: int) -> np.ndarray:
     return np.zeros((6, 3, max(int(stencil.end.max()) + 1, LANES) + num_points))
 
 
+def part_force_buffers(stencil: GridSprings, num_points: int, parts: int) -> np.ndarray:
+    """A :func:`force_buffer` for each of ``parts`` threads' parts, (parts, 6, 3,
+    pad + N): a part writes and reads only its own, so no force goes from one
+    core to the other (see :func:`integrate`)."""
+    return np.zeros((parts,) + force_buffer(stencil, num_points).shape)
+
+
 @njit(**KERNEL_OPTIONS)
 def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     """One Verlet step under gravity and the spring forces for the springs that
     start at points ``first:stop`` of the (3, N) planes P (positions) and L
-    (last positions), moving only the points from ``moved`` on: ``0, N, 0``
-    is the whole cloth; a thread's part leaves its first points, which the
-    previous part's springs still read, to be moved afterwards.
+    (last positions), stepping only the points from ``moved`` on: ``0, N, 0``
+    is the whole cloth. The stepped points' new positions go to L, over their
+    last ones, and P is not written: the caller then swaps the two, so P
+    holds the new positions and L the ones before. Read by no one while the
+    step runs, P may be read by every thread at once: a thread's part
+    ``lo:hi`` takes ``max(lo - springs.ahead, 0), hi, lo``: the springs of the part
+    before that its first points gather as well as its own.
 
     ``x' = x + keep*(x - x_prev) + a dt²`` where ``free`` is 1, with ``a`` the
     acceleration from gravity and every spring (Hooke's law along the
@@ -197,8 +206,8 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     eight's springs and then its step; elsewhere, and for the last rows,
     whose springs would reach past the end, in chunks of CHUNK points
     (:func:`integrate_chunks`), with the same sums in the same order. A spring's ends are both at its
-    start ``p`` or later, so a point can be moved as soon as its own springs'
-    forces are in: no later eight or chunk reads it.
+    start ``p`` or later, so a point's step can be taken as soon as its own
+    springs' forces are in.
     """
     k_over_m = knobs.k_over_m
     # the switch of verlet_gather is a constant: compiled for each value, its
@@ -223,18 +232,6 @@ def integrate_chunks(P, L, free, knobs, springs, F, first, stop, moved):
         spring_forces(P, k_over_m, springs, F, lo, hi)
         if hi > moved:
             verlet_gather(P, L, free, knobs, springs, F, max(lo, moved), hi, True)
-
-
-@njit(**KERNEL_OPTIONS)
-def gather_ahead(P, L, free, knobs, springs, F, lo, hi):
-    """Move points ``lo:hi`` that :func:`integrate` of a part left (the first
-    ``springs.ahead`` of the next part), from the forces every part wrote."""
-    on = has_springs(knobs.k_over_m)
-    for q in range(lo, hi, CHUNK):
-        if on:  # constants, as in integrate: the same two compiles serve both
-            verlet_gather(P, L, free, knobs, springs, F, q, min(q + CHUNK, hi), True)
-        else:
-            verlet_gather(P, L, free, knobs, springs, F, q, min(q + CHUNK, hi), False)
 
 
 @njit(cache=True, inline="always")
@@ -301,9 +298,10 @@ def zero_wrapped(fx, fy, fz, wrap, cols, lo, m):
 @njit(**KERNEL_OPTIONS)
 def verlet_gather(P, L, free, knobs, springs, F, lo, hi, with_springs):
     """Points ``lo:hi`` gather their spring forces from ``F`` and take their Verlet
-    step; without ``with_springs`` (see :func:`has_springs`) under gravity
-    alone, and ``F``, which then holds the last forces written, is not read
-    (the test is loop-invariant: LLVM keeps a loop for each case)."""
+    step from P into L (see :func:`integrate`); without ``with_springs`` (see
+    :func:`has_springs`) under gravity alone, and ``F``, which then holds the
+    last forces written, is not read (the test is loop-invariant: LLVM keeps
+    a loop for each case)."""
     gravity, keep, dt2 = knobs.gravity, knobs.keep, knobs.dt2
     start, end = springs.start, springs.end
     pad = F.shape[2] - P.shape[1]
@@ -324,5 +322,4 @@ def verlet_gather(P, L, free, knobs, springs, F, lo, hi, with_springs):
                 a += ((f0a[q] - f0b[q]) + (f1a[q] - f1b[q]) + (f2a[q] - f2b[q])
                       + (f3a[q] - f3b[q]) + (f4a[q] - f4b[q]) + (f5a[q] - f5b[q]))
             xq = xc[q]
-            xc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a * dt2)
-            lc[q] = xq
+            lc[q] = xq + fr[q] * (keep * (xq - lc[q]) + a * dt2)

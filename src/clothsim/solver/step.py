@@ -10,7 +10,7 @@ from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
 from .wind import blow_grid, frame_row
 from .provot import provot
-from .springs import CHUNK, gather_ahead, integrate
+from .springs import CHUNK, integrate
 from .selfcollide import self_collide
 from .shared import renamed
 
@@ -93,7 +93,11 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
 
     The substep is cut into as many parts as ``scratch.masks`` has: ranges
     of points, each moved, collided and constrained by one part; the Provot
-    pass then takes the springs across the cuts. This body is compiled twice:
+    pass then takes the springs across the cuts. The Verlet step writes the
+    new positions over the last ones and P and L then swap (see
+    :func:`~.springs.integrate`): every part reads positions that no part
+    writes, each with a force buffer of its own (``scratch.F[t]``), so no
+    thread waits on another's forces and none moves points after the parts. This body is compiled twice:
     as :func:`advance`, which runs the parts one after another (one part:
     the whole cloth), and as :func:`advance_parallel`, where each ``prange``
     hands them to threads.
@@ -122,14 +126,12 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     while done < frames:
         for s in range(substeps):
             slot = done * substeps + s  # the control's slot: frame after frame
-            # a part's last springs reach into the next part's first points: those
-            # are moved only once every part has its forces
+            # a part's first points gather the forces of the part before's last
+            # springs: each part works those out too, from positions no part writes
             for t in prange(parts):
                 lo, hi = _chunk_range(n, parts, t)
-                integrate(P, L, free, knobs, springs, F, lo, hi, lo if t == 0 else min(lo + ahead, hi))
-            for t in range(1, parts):
-                lo, hi = _chunk_range(n, parts, t)
-                gather_ahead(P, L, free, knobs, springs, F, lo, min(lo + ahead, hi))
+                integrate(P, L, free, knobs, springs, F[t], max(lo - ahead, 0), hi, lo)
+            P, L = L, P  # the new positions were written over the last ones
             if handle >= 0:
                 _hold(P, handle, handle_pos)
             place_handles(P, control.moved_points, control.moved_to, slot)
