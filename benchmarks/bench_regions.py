@@ -117,7 +117,7 @@ def instrument(package: Path) -> None:
     edits = [("from .selfcollide import self_collide",
               "from .selfcollide import self_collide\nfrom .region_timer import acc_view, rdtsc"),
              ("    while done < frames:\n", "    acc = acc_view()\n    while done < frames:\n"),
-             *_region(" " * 12, 0, "for t in prange(parts):", "lo, hi = _chunk_range(n, parts, t)\n" + " " * 16
+             *_region(" " * 12, 0, "for t in prange(parts):", "lo, hi = _part_span(n, parts, t, ahead)\n" + " " * 16
                       + "integrate(", "integrate(P, L, free, knobs, springs, F[t], max(lo - ahead, 0), hi, lo)"),
              ("            P, L = L, P  # the new positions were written over the last ones\n",
               "            P, L = L, P  # the new positions were written over the last ones\n            r1 = rdtsc()\n"),
@@ -126,12 +126,12 @@ def instrument(package: Path) -> None:
               "            acc[1, 0] += rdtsc() - r1\n            r1 = rdtsc()\n"
               "            if self_collision:\n                pairs, _ = self_collide(P, points, simulation_steps,"
               " lists, pairs)\n            acc[3, 0] += rdtsc() - r1\n"),
-             *_region(" " * 12, 4, "for t in prange(parts):", "lo, hi = _chunk_range(n, parts, t)\n" + " " * 16
+             *_region(" " * 12, 4, "for t in prange(parts):", "lo, hi = _part_span(n, parts, t, ahead)\n" + " " * 16
                       + "collide(", "provot(P, springs, enabled, masks[t], lo, hi, False)"),
-             ("            for t in range(1, parts):\n                lo, _ = _chunk_range(n, parts, t)\n"
+             ("            for t in range(1, parts):\n                lo, _ = _part_span(n, parts, t, ahead)\n"
               "                provot(P, springs, enabled, masks[0], lo, lo, True)\n",
               "            r1 = rdtsc()\n            for t in range(1, parts):\n"
-              "                lo, _ = _chunk_range(n, parts, t)\n"
+              "                lo, _ = _part_span(n, parts, t, ahead)\n"
               "                provot(P, springs, enabled, masks[0], lo, lo, True)\n"
               "            acc[5, 0] += rdtsc() - r1\n            acc[6, 0] += 1\n")]
     step.write_text(_patch(step.read_text(), edits, "solver/step.py"))

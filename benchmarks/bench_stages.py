@@ -69,7 +69,7 @@ from clothsim.solver.selfcollide.pushes import apply_pushes, pair_pushes
 from clothsim.solver.selfcollide.slack import SLACK_BUCKETS, label_pairs, sort_by_slack
 from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
 from clothsim.solver.springs import integrate, spring_forces, verlet_gather
-from clothsim.solver.step import _chunk_range, _gather_planes
+from clothsim.solver.step import _part_span, _gather_planes
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -78,7 +78,7 @@ def _springs(P, L, free, knobs, springs, F, masks):
     parts = masks.shape[0]
     n = P.shape[1]
     for t in prange(parts):
-        lo, hi = _chunk_range(n, parts, t)
+        lo, hi = _part_span(n, parts, t, springs.ahead)
         integrate(P, L, free, knobs, springs, F[t], max(lo - springs.ahead, 0), hi, lo)
 
 
@@ -86,10 +86,10 @@ def _provot(P, springs, enabled, masks):
     parts = masks.shape[0]
     n = P.shape[1]
     for t in prange(parts):
-        lo, hi = _chunk_range(n, parts, t)
+        lo, hi = _part_span(n, parts, t, springs.ahead)
         provot(P, springs, enabled, masks[t], lo, hi, False)
     for t in range(1, parts):
-        lo, _ = _chunk_range(n, parts, t)
+        lo, _ = _part_span(n, parts, t, springs.ahead)
         provot(P, springs, enabled, masks[0], lo, lo, True)
 
 

@@ -29,7 +29,7 @@ from clothsim.solver.shared import BLOCK
 from clothsim.solver.simd import FORCE_PORTABLE, has_compress
 from clothsim.solver.springs import (AHEAD_STEP, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
                                      integrate, part_force_buffers)
-from clothsim.solver.step import _chunk_range
+from clothsim.solver.step import _part_span
 
 
 def grid_model(nw: int, nh: int, pinned=(), spacing: float = 1.0):
@@ -170,7 +170,7 @@ def test_parts_move_their_points_as_the_whole_cloth_does(nw, nh, parts):
     integrate(whole_P, whole_L, free, k, st, force_buffer(st, n), 0, n, 0)
     P, L, F = P0.copy(), L0.copy(), part_force_buffers(st, n, parts)
     for t in reversed(range(parts)):
-        lo, hi = _chunk_range(n, parts, t)
+        lo, hi = _part_span(n, parts, t, st.ahead)
         integrate(P, L, free, k, st, F[t], max(lo - st.ahead, 0), hi, lo)
     np.testing.assert_array_equal(P, whole_P)
     np.testing.assert_array_equal(L, whole_L)

@@ -10,7 +10,7 @@ from .colliders import collide, has_settle, settle, settle_needs_q
 from .handles import place_handles
 from .wind import blow_grid, frame_row
 from .provot import provot
-from .springs import CHUNK, integrate
+from .springs import AHEAD_STEP, integrate
 from .selfcollide import self_collide
 from .shared import renamed
 
@@ -129,7 +129,7 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
             # a part's first points gather the forces of the part before's last
             # springs: each part works those out too, from positions no part writes
             for t in prange(parts):
-                lo, hi = _chunk_range(n, parts, t)
+                lo, hi = _part_span(n, parts, t, ahead)
                 integrate(P, L, free, knobs, springs, F[t], max(lo - ahead, 0), hi, lo)
             P, L = L, P  # the new positions were written over the last ones
             if handle >= 0:
@@ -140,17 +140,17 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
             if self_collision:
                 pairs, _ = self_collide(P, points, simulation_steps, lists, pairs)
             for t in prange(parts):
-                lo, hi = _chunk_range(n, parts, t)
+                lo, hi = _part_span(n, parts, t, ahead)
                 collide(P, L, free, control, lo, hi, slot)
                 if copying:
                     _copy_range(P, Q, lo, hi)
                 provot(P, springs, enabled, masks[t], lo, hi, False)
             for t in range(1, parts):
-                lo, _ = _chunk_range(n, parts, t)
+                lo, _ = _part_span(n, parts, t, ahead)
                 provot(P, springs, enabled, masks[0], lo, lo, True)
             if settling:
                 for t in prange(parts):
-                    lo, hi = _chunk_range(n, parts, t)
+                    lo, hi = _part_span(n, parts, t, ahead)
                     settle(P, Q, L, free, control, lo, hi, slot)
             if handle >= 0:
                 _hold(P, handle, handle_pos)
@@ -172,10 +172,21 @@ advance_parallel = njit(**ADVANCE_OPTIONS, parallel=True)(renamed(_advance, "adv
 
 
 @njit(cache=True, inline="always")
-def _chunk_range(n, parts, t):
-    """Points ``lo:hi`` of part t of ``parts``, cut at multiples of CHUNK."""
-    size = ((n + parts - 1) // parts + CHUNK - 1) // CHUNK * CHUNK
-    return min(t * size, n), min((t + 1) * size, n)
+def _part_span(n, parts, t, lead):
+    """Points ``lo:hi`` of part t of ``parts``, cut at multiples of AHEAD_STEP (a
+    part's force pass starts on a whole eight, see :func:`~.springs.integrate`).
+    Every part after the first also works out the forces of the ``lead``
+    springs before its range: the first takes ``lead`` points more than the
+    others, so that each part's springs take about as long."""
+    if t == 0:
+        lo = 0
+    else:
+        share = (n + (parts - 1) * lead) // parts
+        lo = min((t * share - (t - 1) * lead) // AHEAD_STEP * AHEAD_STEP, n)
+    if t == parts - 1:
+        return lo, n
+    share = (n + (parts - 1) * lead) // parts
+    return lo, min(((t + 1) * share - t * lead) // AHEAD_STEP * AHEAD_STEP, n)
 
 
 @njit(cache=True, inline="always")
