@@ -189,8 +189,8 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     last ones, and P is not written: the caller then swaps the two, so P
     holds the new positions and L the ones before. Read by no one while the
     step runs, P may be read by every thread at once: a thread's part
-    ``lo:hi`` takes ``max(lo - springs.ahead, 0), hi, lo``: the springs of the part
-    before that its first points gather as well as its own.
+    ``lo:hi`` takes ``max(lo - springs.ahead, 0), hi, lo``, the springs of
+    the part before that its first points gather as well as its own.
 
     ``x' = x + keep*(x - x_prev) + a dt²`` where ``free`` is 1, with ``a`` the
     acceleration from gravity and every spring (Hooke's law along the

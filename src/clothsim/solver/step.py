@@ -97,10 +97,10 @@ def _advance(positions, last_positions, points, springs, knobs, control, lists, 
     new positions over the last ones and P and L then swap (see
     :func:`~.springs.integrate`): every part reads positions that no part
     writes, each with a force buffer of its own (``scratch.F[t]``), so no
-    thread waits on another's forces and none moves points after the parts. This body is compiled twice:
-    as :func:`advance`, which runs the parts one after another (one part:
-    the whole cloth), and as :func:`advance_parallel`, where each ``prange``
-    hands them to threads.
+    thread waits on another's forces and none moves points after the parts.
+    This body is compiled twice: as :func:`advance`, which runs the parts
+    one after another (one part: the whole cloth), and as
+    :func:`advance_parallel`, where each ``prange`` hands them to threads.
     """
     P, L, F, masks = scratch.P, scratch.L, scratch.F, scratch.masks
     free, center = points.free, points.center
