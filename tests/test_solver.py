@@ -176,6 +176,22 @@ def test_parts_move_their_points_as_the_whole_cloth_does(nw, nh, parts):
     np.testing.assert_array_equal(L, whole_L)
 
 
+@pytest.mark.parametrize("n,parts,lead", [(10000, 2, 208), (40000, 2, 408), (12345, 3, 208), (100, 4, 208),
+                                           (16, 4, 8), (7, 1, 8)])
+def test_the_parts_cover_the_cloth_in_eights_the_first_longer_by_the_lead(n, parts, lead):
+    """the cut: ranges one after another from 0 to n, each starting on a whole
+    eight (or empty at n), the first ``lead`` points longer than the next to
+    within an eight (while there are points enough), and none longer than the first"""
+    spans = [_part_span(n, parts, t, lead) for t in range(parts)]
+    assert spans[0][0] == 0 and spans[-1][1] == n
+    assert all(a[1] == b[0] for a, b in zip(spans, spans[1:]))
+    assert all((lo % AHEAD_STEP == 0 or lo == n) and lo <= hi for lo, hi in spans)  # empty at the end
+    sizes = [hi - lo for lo, hi in spans]
+    assert max(sizes) == sizes[0]
+    if parts > 1 and n > parts * (lead + AHEAD_STEP):
+        assert abs(sizes[0] - sizes[1] - lead) <= AHEAD_STEP
+
+
 def test_disabled_kind_adds_no_force():
     """k of 0 for a set means no force from it, however stretched, even after a step
     in which it was on (its buffered forces are not reused)"""

@@ -178,15 +178,19 @@ def _part_span(n, parts, t, lead):
     Every part after the first also works out the forces of the ``lead``
     springs before its range: the first takes ``lead`` points more than the
     others, so that each part's springs take about as long."""
-    if t == 0:
-        lo = 0
-    else:
-        share = (n + (parts - 1) * lead) // parts
-        lo = min((t * share - (t - 1) * lead) // AHEAD_STEP * AHEAD_STEP, n)
-    if t == parts - 1:
-        return lo, n
+    return _cut(n, parts, t, lead), _cut(n, parts, t + 1, lead)
+
+
+@njit(cache=True, inline="always")
+def _cut(n, parts, c, lead):
+    """Where part c of :func:`_part_span` starts (``n`` for c = ``parts``): each part
+    ``share - lead`` points after the first's ``share``, at most n."""
+    if c == 0:
+        return 0
+    if c == parts:
+        return n
     share = (n + (parts - 1) * lead) // parts
-    return lo, min(((t + 1) * share - t * lead) // AHEAD_STEP * AHEAD_STEP, n)
+    return min((c * share - (c - 1) * lead) // AHEAD_STEP * AHEAD_STEP, n)
 
 
 @njit(cache=True, inline="always")
