@@ -20,7 +20,7 @@ from numba import njit
 from ...motion import rotation_matrices
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
-from .box_lanes import LANES, aligned_lanes, turned_lanes
+from .box_lanes import ALIGNED_LANES, TURNED_LANES, aligned_lanes, turned_lanes
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 COLUMNS = 17
@@ -145,7 +145,7 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
     last positions, carried by each box's motion over the substep where ``carry``,
     and the friction rule where ``friction`` (see the two kernels).
 
-    Two passes a box. A vector one over every point (:func:`_common`, eight
+    Two passes a box. A vector one over every point (:func:`_common`, a few
     at a time, :mod:`.box_lanes`) places the common case and marks the rest that end inside
     (near an edge or corner, or inside from before) and those that moved
     farther than the box's thinnest side (they may have gone through it);
@@ -217,9 +217,9 @@ def _thinnest2(box_):
 def _aligned_loop(planes, refs, fr, marked, box_):
     """:func:`_common`'s loop for a still box whose axes are the world's (``box_``:
     centre (3), axes (9), half sizes (3), 1 - friction, margin): the rule in
-    world coordinates about the centre, eight points at a time in the vector
-    code of :func:`.box_lanes.aligned_lanes` (which skips eight that no rule
-    touches), the last few one by one in the same arithmetic. Returns how
+    world coordinates about the centre, ALIGNED_LANES points at a time in the
+    vector code of :func:`.box_lanes.aligned_lanes` (which skips a run that no
+    rule touches), the last few one by one in the same arithmetic. Returns how
     many it marked."""
     x, y, z = planes
     rx, ry, rz = refs
@@ -231,9 +231,9 @@ def _aligned_loop(planes, refs, fr, marked, box_):
     thinnest2 = _thinnest2(box_)
     count = 0
     n = marked.shape[0]
-    full = n - n % LANES
+    full = n - n % ALIGNED_LANES
     lanes_box = (cx, cy, cz, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
-    for q in range(0, full, LANES):
+    for q in range(0, full, ALIGNED_LANES):
         count += aligned_lanes(planes, refs, fr, marked, q, lanes_box)
     for p in range(full, n):
         mx, my, mz = rx[p], ry[p], rz[p]
@@ -277,7 +277,7 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     """:func:`_common`'s loop for any box: each reference position carried by the
     box's motion ``a`` (:func:`.motion_rows.carry_of`) and turned into the
     box's frame in one map, the end turned too, the rule there, and the
-    result turned back (:func:`_frame_maps`); eight at a time in
+    result turned back (:func:`_frame_maps`); TURNED_LANES at a time in
     :func:`.box_lanes.turned_lanes`, the last few one by one. Returns as
     :func:`_aligned_loop`."""
     x, y, z = planes
@@ -290,9 +290,9 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     thinnest2 = _thinnest2(box_)
     count = 0
     n = marked.shape[0]
-    full = n - n % LANES
+    full = n - n % TURNED_LANES
     lanes_box = (0.0, 0.0, 0.0, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
-    for q in range(0, full, LANES):
+    for q in range(0, full, TURNED_LANES):
         count += turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
     for p in range(full, n):
         u0, v0, w0 = carry_point(ref, rx[p], ry[p], rz[p])

@@ -1,15 +1,18 @@
-"""The box's vector pass, eight points at a time (see :mod:`.lanes`).
+"""The box's vector pass, a few points at a time (see :mod:`.lanes`).
 
 Of the 2,500 points of the 50×50 cloth lying on a box, 757 end inside it in
-a substep, and 59% of the runs of eight consecutive points hold none. Each
-call tests its eight first (ending inside, or moved farther than the box's
-thinnest side); where none is, it only clears their marks, and writes
-nothing.
+a substep: 59% of the runs of eight consecutive points hold none, and
+64% of the runs of four. Each call tests its points first
+(ending inside, or moved farther than the box's thinnest side); where none
+is, it only clears their marks, and writes nothing. A box whose axes are the
+world's and that stands still takes four points a call (ALIGNED_LANES), any
+other box eight (TURNED_LANES): each ran faster so (docs/performance.md,
+'Four lanes').
 
 The arithmetic is that of :func:`.box._axis` and :func:`.box._write_or_mark`,
 in the same order: the positions are those of the loop numba vectorised
 before, to the bit, on the standard box scenes; the few points past the last
-eight, placed one by one in numba's code, may round differently in a turned
+full call, placed one by one in numba's code, may round differently in a turned
 box's turns (fast-math lets LLVM fuse their sums otherwise in scalar code).
 """
 
@@ -22,9 +25,16 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from ..simd import _vector_at
-from .lanes import LANES, MAP, Lanes, check_numbers, check_rows, planes_of
+from .lanes import MAP, Lanes, check_numbers, check_rows, planes_of
 
-__all__ = ["LANES", "aligned_lanes", "turned_lanes"]
+__all__ = ["ALIGNED_LANES", "TURNED_LANES", "aligned_lanes", "turned_lanes"]
+
+ALIGNED_LANES = 4
+"""points a call of :func:`aligned_lanes` places: one 256-bit vector of doubles"""
+
+TURNED_LANES = 8
+"""points a call of :func:`turned_lanes` places: its turns into and out of the
+box's frame hold 36 numbers, and on four lanes it was no faster"""
 
 _BOX = 14
 """numbers in a box's tuple, see :func:`aligned_lanes`"""
@@ -84,10 +94,12 @@ def _place_lanes(lanes, ends, starts, free_, old, box, back, store):
 
 
 def _codegen(turned):
+    width = TURNED_LANES if turned else ALIGNED_LANES
+
     def codegen(context, builder, signature, args):
         planes_t, refs_t, free_t, marked_t, at_t, box_t = signature.args[:6]
         planes_v, refs_v, free_v, marked_v, at_v, box_v = args[:6]
-        lanes = Lanes(context, builder)
+        lanes = Lanes(context, builder, width)
         at = context.cast(builder, at_v, at_t, types.intp)
         plane_vals = cgutils.unpack_tuple(builder, planes_v, 3)
         ref_vals = cgutils.unpack_tuple(builder, refs_v, 3)
@@ -111,7 +123,7 @@ def _codegen(turned):
             if values is not None:
                 for p, v in zip(plane_vals, values):
                     lanes.store(v, row_t, p, at)
-            bytes_ = ir.VectorType(ir.IntType(8), LANES)
+            bytes_ = ir.VectorType(ir.IntType(8), width)
             ptr = _vector_at(context, builder, marked_t, marked_v, [at], bytes_)
             builder.store(builder.zext(mark, bytes_), ptr, align=1)
 
@@ -123,14 +135,14 @@ def _codegen(turned):
 @intrinsic
 def aligned_lanes(typingctx, planes, refs, free, marked, at, box):
     """The vector pass of a still box whose axes are the world's (as
-    :func:`.box._aligned_loop`) for points ``at:at + LANES`` of ``planes`` (x, y,
-    z; m) from their references ``refs`` (three planes), ``free`` the points'
-    free weights: the common case written, the rest marked in ``marked``, or,
-    where none of the eight ends inside the box or moved farther than its
+    :func:`.box._aligned_loop`) for points ``at:at + ALIGNED_LANES`` of ``planes``
+    (x, y, z; m) from their references ``refs`` (three planes), ``free`` the
+    points' free weights: the common case written, the rest marked in
+    ``marked``, or, where none of them ends inside the box or moved farther than its
     thinnest side, only the marks cleared. ``box``: centre (3), half sizes (3),
     the slab widened by the margin along each axis (lo, hi; 6), 1 - friction,
     the square of the thinnest side. Returns how many it marked. Nothing is
-    bounds-checked: the caller keeps ``at + LANES`` within every array."""
+    bounds-checked: the caller keeps ``at + ALIGNED_LANES`` within every array."""
     _check(planes, refs, free, marked, box)
     return types.int64(planes, refs, free, marked, at, box), _codegen(False)
 
@@ -139,6 +151,6 @@ def aligned_lanes(typingctx, planes, refs, free, marked, at, box):
 def turned_lanes(typingctx, planes, refs, free, marked, at, box, ref, end, back):
     """:func:`aligned_lanes` for any box (as :func:`.box._turned_loop`): ``box`` in the
     box's own frame (its centre at 0), ``ref``, ``end`` and ``back`` the maps
-    of :func:`.box._frame_maps`."""
+    of :func:`.box._frame_maps`, for points ``at:at + TURNED_LANES``."""
     _check(planes, refs, free, marked, box, (ref, end, back))
     return types.int64(planes, refs, free, marked, at, box, ref, end, back), _codegen(True)

@@ -1,17 +1,18 @@
-"""Eight lanes of doubles in LLVM vector code, for the colliders' passes.
+"""Lanes of doubles in LLVM vector code, for the colliders' passes.
 
 A collider's pass over a cloth lying on it touches few of the points: most
 lie nowhere near the collider's inside. A loop that numba vectorises cannot
 skip a vector's worth of points (its body is branch-free, and a loop of
 eight is left scalar or pays for tests of overlapping arrays every time),
-so the box's and the moving sphere's passes are written as LLVM vector code
-on eight points at a time, with their test first and their rule behind a
-branch taken only where one of the eight needs it (:mod:`.box_lanes`,
+so the box's and the sphere's passes are written as LLVM vector code on a
+few points at a time, with their test first and their rule behind a branch
+taken only where one of them needs it (:mod:`.box_lanes`,
 :mod:`.sphere_lanes`). :class:`Lanes` emits that code: the operations carry
 the fast-math flags numba gives its own (``fastmath=True``), so the same
-sums in the same order give the same bits. LLVM lowers the eight-double
-vectors for any x86 target: one 512-bit register with AVX-512, two 256-bit
-ones without.
+sums in the same order give the same bits. LLVM lowers the vectors for any
+x86 target: eight doubles are one 512-bit register with AVX-512 and two
+256-bit ones without; four are one 256-bit register on either. Each pass
+takes the width it ran fastest at (docs/performance.md, 'Four lanes').
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from numba.core.errors import TypingError
 from ..simd import _splat, _vector_at
 
 LANES = 8
-"""points a call places: one vector of eight doubles"""
+"""the lanes of :class:`Lanes` unless told otherwise: one vector of eight doubles"""
 
 FAST = ("fast",)
 """the flags numba's ``fastmath=True`` puts on every floating-point operation"""
@@ -53,15 +54,16 @@ def planes_of(tuple_type):
 
 
 class Lanes:
-    """The vector code of one call: eight lanes of doubles."""
+    """The vector code of one call: ``width`` lanes of doubles."""
 
-    def __init__(self, context, builder):
+    def __init__(self, context, builder, width=LANES):
         self.context, self.builder = context, builder
-        self.vec = ir.VectorType(ir.DoubleType(), LANES)
-        self.bits = ir.VectorType(ir.IntType(1), LANES)
+        self.width = width
+        self.vec = ir.VectorType(ir.DoubleType(), width)
+        self.bits = ir.VectorType(ir.IntType(1), width)
         module = builder.module
         self._fabs = cgutils.get_or_insert_function(module, ir.FunctionType(self.vec, [self.vec]),
-                                                    "llvm.fabs.v8f64")
+                                                    f"llvm.fabs.v{width}f64")
 
     def splat(self, value):
         return _splat(self.builder, value, self.vec)
@@ -114,7 +116,7 @@ class Lanes:
 
     def sqrt(self, a):
         fn = cgutils.get_or_insert_function(self.builder.module, ir.FunctionType(self.vec, [self.vec]),
-                                            "llvm.sqrt.v8f64")
+                                            f"llvm.sqrt.v{self.width}f64")
         return self.builder.call(fn, [a], fastmath=FAST)
 
     def div(self, a, b):
@@ -128,14 +130,15 @@ class Lanes:
         return self.builder.fcmp_unordered("!=", a, ir.Constant(self.vec, None), flags=FAST)
 
     def count(self, flags):
-        """how many of the eight i1 ``flags`` are set, as an i64"""
+        """how many of the i1 ``flags`` (one a lane) are set, as an i64"""
         b = self.builder
-        word = ir.IntType(LANES)
-        popcount = cgutils.get_or_insert_function(b.module, ir.FunctionType(word, [word]), "llvm.ctpop.i8")
+        word = ir.IntType(self.width)
+        popcount = cgutils.get_or_insert_function(b.module, ir.FunctionType(word, [word]),
+                                                  f"llvm.ctpop.i{self.width}")
         return b.zext(b.call(popcount, [b.bitcast(flags, word)]), ir.IntType(64))
 
     def any(self, flags):
-        """whether any of the eight i1 ``flags`` is set (an i1)"""
+        """whether any of the i1 ``flags`` (one a lane) is set (an i1)"""
         b = self.builder
-        word = b.bitcast(flags, ir.IntType(LANES))
+        word = b.bitcast(flags, ir.IntType(self.width))
         return b.icmp_unsigned("!=", word, ir.Constant(word.type, 0))

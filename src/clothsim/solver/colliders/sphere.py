@@ -4,8 +4,8 @@ A sphere is a row ``(cx, cy, cz, r, friction, carry...)`` of float64 rows
 (T, K, 5 + CARRY) (see :mod:`.motion_rows`): its centre at the end of the
 substep and how it moved over it. Positions are (3, N) coordinate planes
 (see :mod:`clothsim.solver.springs`). The loop over all the points takes
-them eight at a time in vector code of our own (:mod:`.sphere_lanes`), which
-skips eight with none inside; the rare points that moved far
+them a few at a time in vector code of our own (:mod:`.sphere_lanes`), which
+skips a run with none inside; the rare points that moved far
 enough to have gone through a sphere, and those that Provot's pass left
 deeper than SPHERE_SETTLE, are taken in scalar passes that run only when
 there are any.
@@ -94,8 +94,8 @@ def collide_spheres(P, L, free, spheres, lo, hi, s):
 @njit(**KERNEL_OPTIONS)
 def _still_rule(x, y, z, lx, ly, lz, free, row, far2):
     """The loop of :func:`collide_spheres` for a still sphere ``row``: the rule of
-    :func:`_carried_point` on the last positions as they are, eight points at a
-    time in :func:`.sphere_lanes.still_lanes` (which skips eight with none
+    :func:`_carried_point` on the last positions as they are, LANES points at a
+    time in :func:`.sphere_lanes.still_lanes` (which skips a run with none
     inside), the last few one by one; returns how many points moved farther
     than ``far2`` allows."""
     fast = 0
@@ -114,10 +114,10 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
     """The loop of :func:`collide_spheres` for a moving sphere ``row``, its last
     positions carried by the sphere's motion; returns how many points moved
     farther than ``far2`` allows. Apart from :func:`_still_rule`, so that neither
-    compiled loop tests which it is, and the still one reads no carry. Eight
+    compiled loop tests which it is, and the still one reads no carry. LANES
     points at a time in the vector code of
     :func:`.sphere_lanes.carried_lanes`, which skips the rule's square root,
-    division and stores where none of the eight is inside; the last few one
+    division and stores where none of the run is inside; the last few one
     by one (:func:`_carried_point`), in the same arithmetic."""
     fast = 0
     a = carry_of(row, 5)

@@ -1,11 +1,14 @@
-"""A sphere's pass, eight points at a time (see :mod:`.lanes`).
+"""A sphere's pass, LANES points at a time (see :mod:`.lanes`).
 
-Each call carries its eight last positions along with the sphere's motion
-(a still sphere's stay as they are) and tests the eight (inside the sphere and free, or moved too far for the
-radial rule); only where one of them is inside does it take the square root,
-the division and the friction rule, and write the eight back. Of the 2,500
-points of the 50×50 cloth draped over the sphere of ``sphere.json``, 359 are
-inside in a substep, and 72% of the runs of eight hold none.
+Each call carries its LANES last positions along with the sphere's motion
+(a still sphere's stay as they are) and tests them (inside the sphere and
+free, or moved too far for the radial rule); only where one of them is
+inside does it take the square root, the division and the friction rule,
+and write them back. Of the 2,500 points of the 50×50 cloth draped over
+the sphere of ``sphere.json``, 359 are inside in a substep: 72% of the runs
+of eight hold none, and 78% of the runs of four. Four lanes (one
+256-bit vector) skip more than eight, and ran faster with AVX-512 as
+without (docs/performance.md, 'Four lanes').
 
 The arithmetic is that of :func:`.sphere._carried_point`, in the same order:
 the positions are the same to the bit.
@@ -18,9 +21,12 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from .lanes import LANES, MAP, Lanes, check_numbers, check_rows, planes_of
+from .lanes import MAP, Lanes, check_numbers, check_rows, planes_of
 
 __all__ = ["LANES", "carried_lanes", "still_lanes"]
+
+LANES = 4
+"""points a call places: four doubles, one 256-bit vector"""
 
 _SPHERE = 7
 """numbers in a sphere's tuple, see :func:`carried_lanes`"""
@@ -29,7 +35,7 @@ _SPHERE = 7
 def _codegen(context, builder, signature, args):
     planes_t, lasts_t, free_t, at_t, sphere_t = signature.args[:5]
     planes_v, lasts_v, free_v, at_v, sphere_v = args[:5]
-    lanes = Lanes(context, builder)
+    lanes = Lanes(context, builder, LANES)
     b = builder
     at = context.cast(b, at_v, at_t, types.intp)
     row_t = planes_t.dtype
@@ -80,7 +86,7 @@ def carried_lanes(typingctx, planes, lasts, free, at, sphere, carry):
     ``at:at + LANES`` of ``planes`` (x, y, z; m), their last positions
     ``lasts`` (three planes) carried by ``carry`` (12 numbers,
     :func:`.motion_rows.carry_of`), ``free`` their free weights, against
-    ``sphere`` (cx, cy, cz, r, r^2, 1 - friction, far2): the eight written
+    ``sphere`` (cx, cy, cz, r, r^2, 1 - friction, far2): the points written
     where one of them is inside, else left as they are. Returns how many
     moved farther than far2 allows. Nothing is bounds-checked: the caller
     keeps ``at + LANES`` within every array."""
