@@ -104,9 +104,9 @@ def test_no_point_ends_inside_and_a_point_that_entered_stays_on_its_side(seed, t
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), turned=st.booleans(), sliding=st.booleans(),
        friction=st.floats(0.0, 1.0))
-def test_eight_at_a_time_as_one_by_one(seed, turned, sliding, friction):
-    """The pass takes the points eight at a time in vector code written by hand
-    (box_lanes) and the few left over one by one in numba's: both place every
+def test_a_run_at_a_time_as_one_by_one(seed, turned, sliding, friction):
+    """The pass takes the points a run at a time (four or eight, box_lanes) in
+    vector code written by hand and the few left over one by one in numba's: both place every
     point alike (the one-by-one run of each point goes through its own pass, a
     single point long). A box along the world's axes, to the bit; a turned or
     moving one within rounding, as fast-math lets LLVM fuse the turns' sums
@@ -114,12 +114,12 @@ def test_eight_at_a_time_as_one_by_one(seed, turned, sliding, friction):
     b, M, R, P, free = _scene(seed, turned, sliding)
     b.friction = friction
     rows = box.pack([b], 0.0, 1.0, 1)
-    eights = P.copy()
-    box.collide_boxes(eights, R, free, rows, 0, N, 0)
+    runs = P.copy()
+    box.collide_boxes(runs, R, free, rows, 0, N, 0)
     ones = P.copy()
     for p in range(N):
         box.collide_boxes(ones, R, free, rows, p, p + 1, 0)
     if turned or sliding:
-        assert np.abs(eights - ones).max() < 1e-12
+        assert np.abs(runs - ones).max() < 1e-12
     else:
-        assert np.array_equal(eights, ones)
+        assert np.array_equal(runs, ones)

@@ -168,9 +168,9 @@ def test_no_point_ends_below_the_plane_at_one_substep(path, overrides):
     assert lowest[0] >= 0.0
 
 
-def test_the_moving_loop_takes_the_still_rule_eight_at_a_time():
-    """the moving sphere's loop takes its points eight at a time: with the identity
-    carry, over a part that starts and ends off a multiple of eight, it puts
+def test_the_moving_loop_takes_the_still_rule_a_run_at_a_time():
+    """the moving sphere's loop takes its points LANES at a time: with the identity
+    carry, over a part that starts and ends off a multiple of LANES, it puts
     every point where the still sphere's loop does, and leaves the points
     outside the part alone"""
     from clothsim.solver.colliders.sphere_lanes import LANES
@@ -197,8 +197,8 @@ def test_the_moving_loop_takes_the_still_rule_eight_at_a_time():
     assert not moved[:lo].any() and not moved[hi:].any()
 
 
-def test_the_sphere_eight_at_a_time_as_one_by_one():
-    """the sphere's loops, moving and still, take their points eight at a time in
+def test_the_sphere_a_run_at_a_time_as_one_by_one():
+    """the sphere's loops, moving and still, take their points LANES at a time in
     vector code written by hand (sphere_lanes) and the few left over one by one
     in numba's: both put every point of a spinning, sliding sphere's part (or
     of the same sphere standing still) in the same place to the bit and count

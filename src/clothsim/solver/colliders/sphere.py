@@ -117,18 +117,58 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
     compiled loop tests which it is, and the still one reads no carry. LANES
     points at a time in the vector code of
     :func:`.sphere_lanes.carried_lanes`, which skips the rule's square root,
-    division and stores where none of the run is inside; the last few one
-    by one (:func:`_carried_point`), in the same arithmetic."""
+    division and stores where none of the run is inside, and the carry too
+    where none may have moved too far (:func:`carry_screen`); the last few
+    one by one (:func:`_carried_point`), in the same arithmetic."""
     fast = 0
     a = carry_of(row, 5)
     sphere = _rule_of(row, far2)
+    screen = carry_screen(a, row, far2)
     n = x.shape[0]
     full = n - n % LANES
     for q in range(0, full, LANES):
-        fast += carried_lanes((x, y, z), (lx, ly, lz), free, q, sphere, a)
+        fast += carried_lanes((x, y, z), (lx, ly, lz), free, q, sphere, a, screen)
     for p in range(full, n):
         fast += _carried_point((x, y, z), p, carry_point(a, lx[p], ly[p], lz[p]), free[p], sphere)
     return fast
+
+
+SCREEN_REACH = 1e4
+"""[m] the farthest from a moving sphere's centre that :func:`carry_screen` vouches
+for: within it, rounding stays far below the screen's margin"""
+
+
+@njit(cache=True, inline="always")
+def carry_screen(a, row, far2):
+    """(reach2, move2) for :func:`.sphere_lanes.carried_lanes`: a point p within
+    sqrt(reach2) of the sphere's centre c, that moved by u0 from its last
+    position l with |u0|² <= move2, is within sqrt(far2) = F of its carried
+    last position m = A l + t (the carry ``a``), so the loop's far test is
+    false for it.
+
+    Proof: m - l = (A - I)(l - c) + (A - I)c + t, so with θ >= |A - I| (the
+    Frobenius norm) and e = |(A - I)c + t|, |m - l| <= θ(|u0| + |p - c|) + e
+    and |p - m| <= (1 + θ)|u0| + θ|p - c| + e. Asking θ|p - c| <= F/4 and
+    (1 + θ)|u0| + e <= 3F/4 bounds it by F. Both squares are taken a millionth
+    short, far more than their rounding; move2 is -1 (no point vouched for)
+    where e alone reaches 3F/4, and reach2 at most SCREEN_REACH²."""
+    theta2 = 0.0
+    for i in range(3):
+        for j in range(3):
+            g = a[3 * i + j] - (1.0 if i == j else 0.0)
+            theta2 += g * g
+    theta = np.sqrt(theta2)
+    e2 = 0.0
+    for i in range(3):
+        g = (a[3 * i] - (1.0 if i == 0 else 0.0)) * row[0] + (a[3 * i + 1] - (1.0 if i == 1 else 0.0)) * row[1] \
+            + (a[3 * i + 2] - (1.0 if i == 2 else 0.0)) * row[2] + a[9 + i]
+        e2 += g * g
+    big = np.sqrt(far2)
+    short = 1.0 - 1e-6
+    reach = SCREEN_REACH if 4.0 * theta * SCREEN_REACH <= big else big / (4.0 * theta)
+    left = 0.75 * big - np.sqrt(e2)
+    move2 = (left / (1.0 + theta)) ** 2 * short if left > 0.0 else -1.0
+    return reach * reach * short, move2
 
 
 @njit(**KERNEL_OPTIONS, inline="always")

@@ -16,6 +16,7 @@ the positions are the same to the bit.
 
 from __future__ import annotations
 
+from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.core.errors import TypingError
@@ -32,6 +33,31 @@ _SPHERE = 7
 """numbers in a sphere's tuple, see :func:`carried_lanes`"""
 
 
+def _sums(lanes, v):
+    """|v|² of three vectors, in the order the scalar rule sums it"""
+    return lanes.add(lanes.add(lanes.mul(v[0], v[0]), lanes.mul(v[1], v[1])), lanes.mul(v[2], v[2]))
+
+
+def _rule(lanes, context, xyz, m, d, d2, near, far2, sphere_numbers, store):
+    """The rule behind the test: ``far`` (moved farther than far2 allows from the
+    carried last positions m), and where ``near`` (inside and free) and not
+    far, the radial rule with friction, written through ``store``. Returns
+    the count of far lanes (i64)."""
+    b = lanes.builder
+    cx, cy, cz, r, r2, keep, _ = sphere_numbers
+    centre = (cx, cy, cz)
+    u = [lanes.sub(xyz[k], m[k]) for k in range(3)]
+    far = lanes.greater(_sums(lanes, u), far2)
+    hit = b.and_(near, b.not_(far))
+    with b.if_then(lanes.any(hit), likely=False):
+        one = lanes.splat(context.get_constant(types.float64, 1.0))
+        f = lanes.div(r, lanes.sqrt(lanes.pick(hit, d2, one)))
+        for k in range(3):
+            n = lanes.add(m[k], lanes.mul(keep, lanes.sub(lanes.add(centre[k], lanes.mul(d[k], f)), m[k])))
+            store(k, lanes.pick(hit, n, xyz[k]))
+    return lanes.count(far)
+
+
 def _codegen(context, builder, signature, args):
     planes_t, lasts_t, free_t, at_t, sphere_t = signature.args[:5]
     planes_v, lasts_v, free_v, at_v, sphere_v = args[:5]
@@ -43,33 +69,40 @@ def _codegen(context, builder, signature, args):
     xyz = [lanes.load(row_t, p, at) for p in plane_vals]
     last = [lanes.load(row_t, q, at) for q in cgutils.unpack_tuple(b, lasts_v, 3)]
     free_ = lanes.nonzero(lanes.load(free_t, free_v, at))
-    cx, cy, cz, r, r2, keep, far2 = lanes.numbers(sphere_t, sphere_v)
+    numbers = lanes.numbers(sphere_t, sphere_v)
+    cx, cy, cz, r, r2, keep, far2 = numbers
     centre = (cx, cy, cz)
-    # a still sphere's last positions as they are: the course code's sums
-    m = lanes.affine(lanes.numbers(signature.args[5], args[5]), last) if len(args) > 5 else last
+
+    def store(k, value):
+        lanes.store(value, row_t, plane_vals[k], at)
+
     d = [lanes.sub(xyz[k], centre[k]) for k in range(3)]
-    d2 = lanes.add(lanes.add(lanes.mul(d[0], d[0]), lanes.mul(d[1], d[1])), lanes.mul(d[2], d[2]))
-    u = [lanes.sub(xyz[k], m[k]) for k in range(3)]
-    far = lanes.greater(lanes.add(lanes.add(lanes.mul(u[0], u[0]), lanes.mul(u[1], u[1])), lanes.mul(u[2], u[2])),
-                        far2)
+    d2 = _sums(lanes, d)
     zero = lanes.splat(context.get_constant(types.float64, 0.0))
-    hit = b.and_(b.and_(b.and_(lanes.less(d2, r2), lanes.greater(d2, zero)), free_), b.not_(far))
-    with b.if_then(lanes.any(hit), likely=False):
-        one = lanes.splat(context.get_constant(types.float64, 1.0))
-        f = lanes.div(r, lanes.sqrt(lanes.pick(hit, d2, one)))
-        for k in range(3):
-            n = lanes.add(m[k], lanes.mul(keep, lanes.sub(lanes.add(centre[k], lanes.mul(d[k], f)), m[k])))
-            lanes.store(lanes.pick(hit, n, xyz[k]), row_t, plane_vals[k], at)
-    return lanes.count(far)
+    near = b.and_(b.and_(lanes.less(d2, r2), lanes.greater(d2, zero)), free_)
+    if len(args) == 5:
+        # a still sphere's last positions as they are: the course code's sums
+        return _rule(lanes, context, xyz, last, d, d2, near, far2, numbers, store)
+    # a moving sphere: its carry is made only where a point is inside or may have
+    # moved too far from its carried last position (see carried_lanes)
+    carry = lanes.numbers(signature.args[5], args[5])
+    reach2, move2 = lanes.numbers(signature.args[6], args[6])
+    u0 = [lanes.sub(xyz[k], last[k]) for k in range(3)]
+    maybe = b.or_(lanes.greater(d2, reach2), lanes.greater(_sums(lanes, u0), move2))
+    count = cgutils.alloca_once_value(b, ir.Constant(ir.IntType(64), 0))
+    with b.if_then(lanes.any(b.or_(near, maybe)), likely=False):
+        b.store(_rule(lanes, context, xyz, lanes.affine(carry, last), d, d2, near, far2, numbers, store), count)
+    return b.load(count)
 
 
-def _check(planes, lasts, free, sphere, carry=None):
+def _check(planes, lasts, free, sphere, carry=None, screen=None):
     """A typing error unless the arguments are what the lanes read and write."""
     arrays = planes_of(planes) + planes_of(lasts) + (free,)
     if len(arrays) != 7:
         raise TypingError("the sphere's lanes take three planes and three last positions")
     check_rows("the sphere's lanes", arrays)
-    check_numbers("the sphere's lanes", ((sphere, _SPHERE),) + (((carry, MAP),) if carry is not None else ()))
+    moving = ((carry, MAP), (screen, 2)) if carry is not None else ()
+    check_numbers("the sphere's lanes", ((sphere, _SPHERE),) + moving)
 
 
 @intrinsic
@@ -81,7 +114,7 @@ def still_lanes(typingctx, planes, lasts, free, at, sphere):
 
 
 @intrinsic
-def carried_lanes(typingctx, planes, lasts, free, at, sphere, carry):
+def carried_lanes(typingctx, planes, lasts, free, at, sphere, carry, screen):
     """The moving sphere's rule (:func:`.sphere._carried_point`) for points
     ``at:at + LANES`` of ``planes`` (x, y, z; m), their last positions
     ``lasts`` (three planes) carried by ``carry`` (12 numbers,
@@ -89,6 +122,14 @@ def carried_lanes(typingctx, planes, lasts, free, at, sphere, carry):
     ``sphere`` (cx, cy, cz, r, r^2, 1 - friction, far2): the points written
     where one of them is inside, else left as they are. Returns how many
     moved farther than far2 allows. Nothing is bounds-checked: the caller
-    keeps ``at + LANES`` within every array."""
-    _check(planes, lasts, free, sphere, carry)
-    return types.int64(planes, lasts, free, at, sphere, carry), _codegen
+    keeps ``at + LANES`` within every array.
+
+    The carry (twelve multiply-adds a point) is made only for the points of
+    a call where one is inside, or may have moved too far: ``screen`` (reach2,
+    move2) of :func:`.sphere.carry_screen` are bounds such that a point no
+    farther than sqrt(reach2) from the centre that moved no more than
+    sqrt(move2) from its last position as it stands is within sqrt(far2) of
+    its carried one. Elsewhere no point is written and none counted, as the
+    rule would have it: the positions are the same to the bit."""
+    _check(planes, lasts, free, sphere, carry, screen)
+    return types.int64(planes, lasts, free, at, sphere, carry, screen), _codegen
