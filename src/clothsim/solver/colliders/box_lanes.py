@@ -52,11 +52,12 @@ def _check(planes, refs, free, marked, box, maps=()):
     check_numbers("the box's lanes", ((box, _BOX),) + tuple((m, MAP) for m in maps))
 
 
-def _place_lanes(lanes, ends, starts, free_, old, box, back, store):
+def _place_lanes(lanes, ends, starts, load_free, old, box, back, store):
     """The body of a call: ``ends`` and ``starts`` (three vectors each) are the
     points and their references in the frame where the box is ``box``
-    (:func:`aligned_lanes`'s numbers, each in every lane), ``free_`` whether
-    each point is free (an i1 vector), ``old`` the points as read (three
+    (:func:`aligned_lanes`'s numbers, each in every lane), ``load_free()``
+    reads whether each point is free (an i1 vector; read only behind the
+    test, which a pinned point seldom passes), ``old`` the points as read (three
     vectors, the world's); ``back`` maps a placed point to the world (None: it
     is there already); ``store(planes, marks)`` writes three vectors of
     positions (or None: leave them) and the marks (an i1 vector). Returns the
@@ -64,16 +65,18 @@ def _place_lanes(lanes, ends, starts, free_, old, box, back, store):
     b = lanes.builder
     c, h, reach = box[0:3], box[3:6], box[6:12]
     keep, thinnest2 = box[12], box[13]
-    inside = free_
-    for k in range(3):
-        inside = b.and_(lanes.less(lanes.abs(lanes.sub(ends[k], c[k])), h[k]), inside)
+    ends_in = [lanes.less(lanes.abs(lanes.sub(ends[k], c[k])), h[k]) for k in range(3)]
+    inside = b.and_(b.and_(ends_in[0], ends_in[1]), ends_in[2])
     moves = [lanes.sub(ends[k], starts[k]) for k in range(3)]
     d2 = lanes.add(lanes.add(lanes.mul(moves[0], moves[0]), lanes.mul(moves[1], moves[1])),
                    lanes.mul(moves[2], moves[2]))
-    far = b.and_(lanes.at_least(d2, thinnest2), free_)
+    far = lanes.at_least(d2, thinnest2)
     count = cgutils.alloca_once_value(b, ir.Constant(ir.IntType(64), 0))
     with b.if_else(lanes.any(b.or_(inside, far)), likely=False) as (some, none):
         with some:
+            free_ = load_free()
+            inside = b.and_(inside, free_)
+            far = b.and_(far, free_)
             outs, new = [], []
             for k in range(3):
                 a0 = starts[k]
@@ -106,7 +109,10 @@ def _codegen(turned):
         row_t = planes_t.dtype
         xyz = [lanes.load(row_t, p, at) for p in plane_vals]
         refs = [lanes.load(row_t, r, at) for r in ref_vals]
-        free_ = lanes.nonzero(lanes.load(free_t, free_v, at))
+
+        def load_free():
+            return lanes.nonzero(lanes.load(free_t, free_v, at))
+
         box = lanes.numbers(box_t, box_v)
         back = None
         if turned:
@@ -127,7 +133,7 @@ def _codegen(turned):
             ptr = _vector_at(context, builder, marked_t, marked_v, [at], bytes_)
             builder.store(builder.zext(mark, bytes_), ptr, align=1)
 
-        return _place_lanes(lanes, ends, starts, free_, xyz, box, back, store)
+        return _place_lanes(lanes, ends, starts, load_free, xyz, box, back, store)
 
     return codegen
 

@@ -38,18 +38,20 @@ def _sums(lanes, v):
     return lanes.add(lanes.add(lanes.mul(v[0], v[0]), lanes.mul(v[1], v[1])), lanes.mul(v[2], v[2]))
 
 
-def _rule(lanes, context, xyz, m, d, d2, near, far2, sphere_numbers, store):
+def _rule(lanes, context, xyz, m, d, d2, near, load_free, far2, sphere_numbers, store):
     """The rule behind the test: ``far`` (moved farther than far2 allows from the
-    carried last positions m), and where ``near`` (inside and free) and not
-    far, the radial rule with friction, written through ``store``. Returns
-    the count of far lanes (i64)."""
+    carried last positions m), and where ``near`` (inside), free
+    (``load_free()``, read only where some point is inside) and not far, the
+    radial rule with friction, written through ``store``. Returns the count
+    of far lanes (i64)."""
     b = lanes.builder
     cx, cy, cz, r, r2, keep, _ = sphere_numbers
     centre = (cx, cy, cz)
     u = [lanes.sub(xyz[k], m[k]) for k in range(3)]
     far = lanes.greater(_sums(lanes, u), far2)
-    hit = b.and_(near, b.not_(far))
-    with b.if_then(lanes.any(hit), likely=False):
+    inside = b.and_(near, b.not_(far))
+    with b.if_then(lanes.any(inside), likely=False):
+        hit = b.and_(inside, load_free())
         one = lanes.splat(context.get_constant(types.float64, 1.0))
         f = lanes.div(r, lanes.sqrt(lanes.pick(hit, d2, one)))
         for k in range(3):
@@ -68,7 +70,9 @@ def _codegen(context, builder, signature, args):
     plane_vals = cgutils.unpack_tuple(b, planes_v, 3)
     xyz = [lanes.load(row_t, p, at) for p in plane_vals]
     last = [lanes.load(row_t, q, at) for q in cgutils.unpack_tuple(b, lasts_v, 3)]
-    free_ = lanes.nonzero(lanes.load(free_t, free_v, at))
+    def load_free():
+        return lanes.nonzero(lanes.load(free_t, free_v, at))
+
     numbers = lanes.numbers(sphere_t, sphere_v)
     cx, cy, cz, r, r2, keep, far2 = numbers
     centre = (cx, cy, cz)
@@ -79,10 +83,10 @@ def _codegen(context, builder, signature, args):
     d = [lanes.sub(xyz[k], centre[k]) for k in range(3)]
     d2 = _sums(lanes, d)
     zero = lanes.splat(context.get_constant(types.float64, 0.0))
-    near = b.and_(b.and_(lanes.less(d2, r2), lanes.greater(d2, zero)), free_)
+    near = b.and_(lanes.less(d2, r2), lanes.greater(d2, zero))
     if len(args) == 5:
         # a still sphere's last positions as they are: the course code's sums
-        return _rule(lanes, context, xyz, last, d, d2, near, far2, numbers, store)
+        return _rule(lanes, context, xyz, last, d, d2, near, load_free, far2, numbers, store)
     # a moving sphere: its carry is made only where a point is inside or may have
     # moved too far from its carried last position (see carried_lanes)
     carry = lanes.numbers(signature.args[5], args[5])
@@ -91,7 +95,8 @@ def _codegen(context, builder, signature, args):
     maybe = b.or_(lanes.greater(d2, reach2), lanes.greater(_sums(lanes, u0), move2))
     count = cgutils.alloca_once_value(b, ir.Constant(ir.IntType(64), 0))
     with b.if_then(lanes.any(b.or_(near, maybe)), likely=False):
-        b.store(_rule(lanes, context, xyz, lanes.affine(carry, last), d, d2, near, far2, numbers, store), count)
+        b.store(_rule(lanes, context, xyz, lanes.affine(carry, last), d, d2, near, load_free, far2, numbers, store),
+                count)
     return b.load(count)
 
 
