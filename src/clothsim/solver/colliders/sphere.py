@@ -135,7 +135,9 @@ def _carried_rule(x, y, z, lx, ly, lz, free, row, far2):
 
 SCREEN_REACH = 1e4
 """[m] the farthest from a moving sphere's centre that :func:`carry_screen` vouches
-for: within it, rounding stays far below the screen's margin"""
+for. The carry's rounding grows with the points' coordinates; within this
+reach of a centre anywhere a scene may put one, it stays far below the
+screen's margin"""
 
 
 @njit(cache=True, inline="always")
