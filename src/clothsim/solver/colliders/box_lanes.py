@@ -68,8 +68,7 @@ def _place_lanes(lanes, ends, starts, load_free, old, box, back, store):
     ends_in = [lanes.less(lanes.abs(lanes.sub(ends[k], c[k])), h[k]) for k in range(3)]
     inside = b.and_(b.and_(ends_in[0], ends_in[1]), ends_in[2])
     moves = [lanes.sub(ends[k], starts[k]) for k in range(3)]
-    d2 = lanes.add(lanes.add(lanes.mul(moves[0], moves[0]), lanes.mul(moves[1], moves[1])),
-                   lanes.mul(moves[2], moves[2]))
+    d2 = lanes.squared(moves)
     far = lanes.at_least(d2, thinnest2)
     count = cgutils.alloca_once_value(b, ir.Constant(ir.IntType(64), 0))
     with b.if_else(lanes.any(b.or_(inside, far)), likely=False) as (some, none):

@@ -106,6 +106,10 @@ class Lanes:
         up = self.pick(self.builder.fcmp_ordered(">", a, lo, flags=FAST), a, lo)
         return self.pick(self.builder.fcmp_ordered("<", up, hi, flags=FAST), up, hi)
 
+    def squared(self, v):
+        """|v|² of three vectors, summed x² + y², then + z², as the scalar rules sum it"""
+        return self.add(self.add(self.mul(v[0], v[0]), self.mul(v[1], v[1])), self.mul(v[2], v[2]))
+
     def affine(self, m, point):
         """the map m (12 numbers, :func:`.motion_rows.carry_of`) of a point, in the
         order :func:`.motion_rows.carry_point` sums it"""

@@ -34,11 +34,6 @@ _SPHERE = 7
 """numbers in a sphere's tuple, see :func:`carried_lanes`"""
 
 
-def _sums(lanes, v):
-    """|v|² of three vectors, in the order the scalar rule sums it"""
-    return lanes.add(lanes.add(lanes.mul(v[0], v[0]), lanes.mul(v[1], v[1])), lanes.mul(v[2], v[2]))
-
-
 def _rule(lanes, context, xyz, m, d, d2, near, load_free, far2, sphere_numbers, store):
     """The rule behind the test: ``far`` (moved farther than far2 allows from the
     carried last positions m), and where ``near`` (inside), free
@@ -49,7 +44,7 @@ def _rule(lanes, context, xyz, m, d, d2, near, load_free, far2, sphere_numbers, 
     cx, cy, cz, r, r2, keep, _ = sphere_numbers
     centre = (cx, cy, cz)
     u = [lanes.sub(xyz[k], m[k]) for k in range(3)]
-    far = lanes.greater(_sums(lanes, u), far2)
+    far = lanes.greater(lanes.squared(u), far2)
     inside = b.and_(near, b.not_(far))
     with b.if_then(lanes.any(inside), likely=False):
         hit = b.and_(inside, load_free())
@@ -83,7 +78,7 @@ def _codegen(context, builder, signature, args):
         lanes.store(value, row_t, plane_vals[k], at)
 
     d = [lanes.sub(xyz[k], centre[k]) for k in range(3)]
-    d2 = _sums(lanes, d)
+    d2 = lanes.squared(d)
     zero = lanes.splat(context.get_constant(types.float64, 0.0))
     near = b.and_(lanes.less(d2, r2), lanes.greater(d2, zero))
     if len(args) == 5:
@@ -94,7 +89,7 @@ def _codegen(context, builder, signature, args):
     carry = lanes.numbers(signature.args[5], args[5])
     reach2, move2 = lanes.numbers(signature.args[6], args[6])
     u0 = [lanes.sub(xyz[k], last[k]) for k in range(3)]
-    maybe = b.or_(lanes.greater(d2, reach2), lanes.greater(_sums(lanes, u0), move2))
+    maybe = b.or_(lanes.greater(d2, reach2), lanes.greater(lanes.squared(u0), move2))
     count = cgutils.alloca_once_value(b, ir.Constant(ir.IntType(64), 0))
     with b.if_then(lanes.any(b.or_(near, maybe)), likely=False):
         b.store(_rule(lanes, context, xyz, lanes.affine(carry, last), d, d2, near, load_free, far2, numbers, store),
