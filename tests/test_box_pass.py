@@ -123,3 +123,34 @@ def test_a_run_at_a_time_as_one_by_one(seed, turned, sliding, friction):
         assert np.abs(runs - ones).max() < 1e-12
     else:
         assert np.array_equal(runs, ones)
+
+
+def test_the_settle_pass_of_a_turning_sliding_box_puts_points_back_where_the_colliders_left_them():
+    """the settle pass tests a point's move from where the colliders left it (Q,
+    in the box's pose at the end of the substep) to where a later pass put it
+    (P): both are of the same moment, so Q is not carried by the box's motion.
+    A point that the later pass pushed a little into a box that slides 5 cm
+    and turns 10° over the substep goes back to Q, in the runs of the vector
+    pass as in the pass of a single point (which the scalar code takes)"""
+    motion = Animation((Keyframe(0.0), Keyframe(1.0, (0.05, 0.0, 0.0), (0.0, 10.0, 0.0))))
+    b = SimpleNamespace(center=np.array([0.2, 0.3, -0.1]), size=np.array([0.6, 0.2, 0.6]), rotate=(0.0, 15.0, 0.0),
+                        friction=0.3, margin=1e-3, animation=motion)
+    rows = box.pack([b], 0.0, 1.0, 1)
+    row = rows[0, 0]
+    R, center = row[3:12].reshape(3, 3), row[:3]
+    rng = np.random.default_rng(11)
+    n = 8 * 8
+    # on the top face of the box in its pose at the end of the substep: Q just
+    # above it, P pushed 1-5 mm below it
+    local = np.column_stack([rng.uniform(-0.25, 0.25, n), np.full(n, 0.1 + 2e-3), rng.uniform(-0.25, 0.25, n)])
+    Q = (center + local @ R.T).T.copy()
+    pushed = local - np.column_stack([np.zeros(n), rng.uniform(3e-3, 7e-3, n), np.zeros(n)])
+    P0 = (center + pushed @ R.T).T.copy()
+    free = np.ones(n)
+    runs = P0.copy()
+    box.settle_boxes(runs, Q, free, rows, 0, n, 0)
+    ones = P0.copy()
+    for p in range(n):
+        box.settle_boxes(ones, Q, free, rows, p, p + 1, 0)
+    np.testing.assert_allclose(runs, Q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ones, Q, rtol=0, atol=1e-12)

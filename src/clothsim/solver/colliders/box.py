@@ -181,6 +181,10 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
                 P[2, p] = cz + r20 * fu + r21 * fv + r22 * fw
 
 
+STAY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+"""the carry of references that stay where they are (:func:`.motion_rows.carry_of`)"""
+
+
 @njit(**KERNEL_OPTIONS)
 def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     """The vector pass of :func:`_boxes_pass` for the box of ``row`` over points
@@ -202,8 +206,9 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
             row[12], row[13], row[14], 1.0 - row[15] if friction else 0.0, row[16])
     if aligned and not carry:
         return _aligned_loop(planes, refs, fr, marked, box_)
-    # a still box's carry is the identity, exact in floating point
-    return _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS))
+    # a still box's carry is the identity, exact in floating point; the settle's
+    # references (not ``carry``) are of the substep's end, and are not carried
+    return _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS) if carry else STAY)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
