@@ -2,8 +2,9 @@
 
 Each case is ``sphere.json`` (50x50, self-collision on, one thread) with its
 collider swapped: the still sphere of today; the same sphere spinning; a box
-(a table under the cloth); the same box sliding and turning; the sphere with
-a 5 m/s wind; no collider at all (what the rest of the substep costs). Cases
+(a table under the cloth); the same box turned 20° about y; the box sliding
+and turning; the sphere with a 5 m/s wind; no collider at all (what the rest
+of the substep costs). Cases
 run in interleaved rounds, alternating their order, one second of simulated
 time each from the same start; a line per case gives the best and median
 substeps/s and microseconds a substep, and how much more than the still
@@ -15,9 +16,10 @@ scenes, not colliders. ``--kernels`` times the collider kernels alone instead,
 each on the cloth of its own case after 1.5 s (draped on the sphere, lying
 on the box) one substep's fall further, called on a fresh copy of it many
 times (the copy's own time taken off), best of the rounds: the still sphere,
-the spinning sphere (on the still one's cloth), the box, the same box
-moving, the wind (its pass over the triangles: the grid path's stencils, and
-the general path's loop over a triangle list), per call of one substep; and
+the spinning sphere (on the still one's cloth), the box, the turned box
+(on its own cloth), the box moving, the wind (its pass over the triangles:
+the grid path's stencils, and the general path's loop over a triangle
+list), per call of one substep; and
 the still sphere's kernel as it stood at `c978e85` (``sphere_then.py``),
 the sphere issue 21 measures a box and an animated sphere against. Each
 line gives the kernel's cost as a multiple of today's still sphere
@@ -43,6 +45,9 @@ from clothsim.standard_scenes import scene_path
 SPIN = {"keys": [{"t": 0}, {"t": 4, "rotate": [0, 360, 0]}], "loop": True}
 SLOT = 3
 """the substep of a frame the kernels are timed at (``--kernels``)"""
+TURN = [0, 20, 0]
+"""[degrees] the turned box's own rotation: its axes are not the world's, so its
+pass turns every point into its frame, as a moving box's does"""
 SLIDE = {"keys": [{"t": 0}, {"t": 2, "translate": [0.2, 0, 0], "rotate": [0, 30, 0]}], "loop": True}
 
 
@@ -53,6 +58,7 @@ def cases(base: dict) -> dict[str, dict]:
     out["spinning sphere"] = {**base, "sphere": {**sphere, "animation": SPIN}}
     no_sphere = {k: v for k, v in base.items() if k != "sphere"}
     out["box"] = {**no_sphere, "box": box}
+    out["turned box"] = {**no_sphere, "box": {**box, "rotate": TURN}}
     out["moving box"] = {**no_sphere, "box": {**box, "animation": SLIDE}}
     out["sphere + wind"] = {**base, "wind": {"velocity": [5.0, 0.0, 0.0]}}
     out["no collider"] = no_sphere
@@ -94,6 +100,7 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     scenes = cases(base)
     on_sphere = _settled(scenes["sphere"])
     on_box = _settled(scenes["box"])
+    on_turned = _settled(scenes["turned box"])
     sim = on_sphere[3]
     dt, steps = sim.params.dt, sim.params.simulation_steps
     spin = Animation((Keyframe(0.0), Keyframe(4.0, rotate=(0.0, 360.0, 0.0))), loop=True)
@@ -109,6 +116,7 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     work = {"sphere": (sphere.collide_spheres, sphere.pack([s0], 1.5, dt, steps), on_sphere),
             "spinning sphere": (sphere.collide_spheres, sphere.pack([moving_sphere], 1.5, dt, steps), on_sphere),
             "box": (box.collide_boxes, box.pack([b0], 1.5, dt, steps), on_box),
+            "turned box": (box.collide_boxes, box.pack([on_turned[3].boxes[0]], 1.5, dt, steps), on_turned),
             "moving box": (box.collide_boxes, box.pack([moving_box], 1.5, dt, steps), on_box),
             "sphere at c978e85": (sphere_then.collide_spheres, sphere_then.pack([s0]), on_sphere)}
     wind = pack_wind(WindSpec((5.0, 0.0, 0.0)), 1.5, dt)
