@@ -154,3 +154,48 @@ def test_the_settle_pass_of_a_turning_sliding_box_puts_points_back_where_the_col
         box.settle_boxes(ones, Q, free, rows, p, p + 1, 0)
     np.testing.assert_allclose(runs, Q, rtol=0, atol=1e-12)
     np.testing.assert_allclose(ones, Q, rtol=0, atol=1e-12)
+
+
+def test_points_by_a_turned_box_that_moved_about_its_thinnest_side_are_marked_as_one_by_one():
+    """points around a box, none inside, most having moved little, a few just
+    past the box's thinnest side (they may have gone through it: marked) or just
+    short of it (not marked): for a still box turned on all three axes, whose
+    runs take the move's length in the world's frame and turn the references
+    only where a run's rule runs, and for the same box sliding and turning,
+    whose runs turn every reference, the runs mark the same points as the
+    pass of a single point, and move none"""
+    rng = np.random.default_rng(7)
+    size = np.array([0.6, 0.2, 0.5])
+    for animation in (None, Animation((Keyframe(0.0), Keyframe(1.0, (0.05, 0.0, 0.0), (3.0, 10.0, 0.0))))):
+        b = SimpleNamespace(center=np.array([0.1, 0.4, -0.2]), size=size, rotate=(12.0, 35.0, -20.0), friction=0.5,
+                            margin=1e-3, animation=animation)
+        rows = box.pack([b], 0.0, 1.0, 1)
+        row = rows[0, 0]
+        a = box.carry_of(row, box.COLUMNS)
+        A, t = np.array(a[:9]).reshape(3, 3), np.array(a[9:])
+        n = 40 * 8
+        # the ends on a shell well outside the box (its half diagonal is 0.41 m)
+        ways = rng.normal(size=(n, 3))
+        now = row[:3] + rng.uniform(0.5, 1.0, (n, 1)) * ways / np.linalg.norm(ways, axis=1)[:, None]
+        gap = np.full(n, 0.1 * size.min())
+        past = np.arange(3, n, 19)
+        short = np.setdiff1d(np.arange(7, n, 31), past)
+        gap[past] = size.min() * (1.0 + 1e-9)
+        gap[short] = size.min() * (1.0 - 1e-9)
+        ways = rng.normal(size=(n, 3))
+        carried = now - gap[:, None] * ways / np.linalg.norm(ways, axis=1)[:, None]
+        refs = np.ascontiguousarray(np.linalg.solve(A, (carried - t).T))
+        P = np.ascontiguousarray(now.T)
+        free = np.ones(n)
+        moving = animation is not None
+        runs = np.zeros(n, dtype=np.bool_)
+        count = box._common(P, refs, free, row, 0, runs, moving, True, False)
+        ones = np.zeros(n, dtype=np.bool_)
+        for p in range(n):
+            box._common(P, refs, free, row, p, ones[p:p + 1], moving, True, False)
+        expected = np.zeros(n, dtype=np.bool_)
+        expected[past] = True
+        np.testing.assert_array_equal(runs, expected)
+        np.testing.assert_array_equal(ones, expected)
+        assert count == len(past)
+        np.testing.assert_array_equal(P, now.T)

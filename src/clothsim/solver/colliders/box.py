@@ -20,7 +20,7 @@ from numba import njit
 from ...motion import rotation_matrices
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
-from .box_lanes import ALIGNED_LANES, TURNED_LANES, aligned_lanes, turned_lanes
+from .box_lanes import ALIGNED_LANES, STILL_LANES, TURNED_LANES, aligned_lanes, still_lanes, turned_lanes
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 COLUMNS = 17
@@ -181,10 +181,6 @@ def _boxes_pass(P, R, free, boxes, lo, hi, s, carry, friction):
                 P[2, p] = cz + r20 * fu + r21 * fv + r22 * fw
 
 
-STAY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
-"""the carry of references that stay where they are (:func:`.motion_rows.carry_of`)"""
-
-
 @njit(**KERNEL_OPTIONS)
 def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     """The vector pass of :func:`_boxes_pass` for the box of ``row`` over points
@@ -204,11 +200,11 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     fr = free[lo:lo + n]
     box_ = (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10], row[11],
             row[12], row[13], row[14], 1.0 - row[15] if friction else 0.0, row[16])
-    if aligned and not carry:
-        return _aligned_loop(planes, refs, fr, marked, box_)
-    # a still box's carry is the identity, exact in floating point; the settle's
-    # references (not ``carry``) are of the substep's end, and are not carried
-    return _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS) if carry else STAY)
+    if not carry:  # a still box, or the settle's references (of the substep's end)
+        if aligned:
+            return _aligned_loop(planes, refs, fr, marked, box_)
+        return _turned_loop(planes, refs, fr, marked, box_, None)
+    return _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS))
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -277,28 +273,39 @@ def _frame_maps(box_, a):
     return ref, end, back
 
 
+_STAY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+"""the carry of references that stay where they are (:func:`.motion_rows.carry_of`)"""
+
+
 @njit(**KERNEL_OPTIONS)
 def _turned_loop(planes, refs, fr, marked, box_, a):
     """:func:`_common`'s loop for any box: each reference position carried by the
     box's motion ``a`` (:func:`.motion_rows.carry_of`) and turned into the
     box's frame in one map, the end turned too, the rule there, and the
     result turned back (:func:`_frame_maps`); TURNED_LANES at a time in
-    :func:`.box_lanes.turned_lanes`, the last few one by one. Returns as
-    :func:`_aligned_loop`."""
+    :func:`.box_lanes.turned_lanes`, the last few one by one. ``a`` None: the
+    references stay where they are (a still box, or the settle's), and the
+    far test takes the move in the world's frame, which the turn keeps
+    (:func:`.box_lanes.still_lanes`, which then turns the references only
+    where a run's rule runs). Returns as :func:`_aligned_loop`."""
     x, y, z = planes
     rx, ry, rz = refs
     hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]
-    ref, end, back = _frame_maps(box_, a)
+    ref, end, back = _frame_maps(box_, _STAY if a is None else a)
     reach_u = (-(hu + margin), hu + margin)
     reach_v = (-(hv + margin), hv + margin)
     reach_w = (-(hw + margin), hw + margin)
     thinnest2 = _thinnest2(box_)
     count = 0
     n = marked.shape[0]
-    full = n - n % TURNED_LANES
+    width = STILL_LANES if a is None else TURNED_LANES
+    full = n - n % width
     lanes_box = (0.0, 0.0, 0.0, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
-    for q in range(0, full, TURNED_LANES):
-        count += turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
+    for q in range(0, full, width):
+        if a is None:
+            count += still_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
+        else:
+            count += turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
     for p in range(full, n):
         u0, v0, w0 = carry_point(ref, rx[p], ry[p], rz[p])
         xp, yp, zp = x[p], y[p], z[p]
@@ -308,6 +315,8 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
         out_u, fu, du = _axis(u0, u1, 0.0, hu, reach_u, keep)
         out_v, fv, dv = _axis(v0, v1, 0.0, hv, reach_v, keep)
         out_w, fw, dw = _axis(w0, w1, 0.0, hw, reach_w, keep)
+        if a is None:  # as still_lanes: the move in the world's frame
+            du, dv, dw = xp - rx[p], yp - ry[p], zp - rz[p]
         far = (du * du + dv * dv + dw * dw >= thinnest2) & free_
         count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), far, carry_point(back, fu, fv, fw),
                                 (xp, yp, zp))

@@ -24,10 +24,10 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from ..simd import _vector_at
+from ..simd import _vector_at, has_avx512f
 from .lanes import MAP, Lanes, check_numbers, check_rows, planes_of
 
-__all__ = ["ALIGNED_LANES", "TURNED_LANES", "aligned_lanes", "turned_lanes"]
+__all__ = ["ALIGNED_LANES", "TURNED_LANES", "aligned_lanes", "still_lanes", "turned_lanes"]
 
 ALIGNED_LANES = 4
 """points a call of :func:`aligned_lanes` places: one 256-bit vector of doubles"""
@@ -35,6 +35,9 @@ ALIGNED_LANES = 4
 TURNED_LANES = 8
 """points a call of :func:`turned_lanes` places: its turns into and out of the
 box's frame hold 36 numbers, and on four lanes it was no faster"""
+
+STILL_LANES = 8 if has_avx512f() else 4
+"""points a call of :func:`still_lanes` places"""
 
 _BOX = 14
 """numbers in a box's tuple, see :func:`aligned_lanes`"""
@@ -52,7 +55,7 @@ def _check(planes, refs, free, marked, box, maps=()):
     check_numbers("the box's lanes", ((box, _BOX),) + tuple((m, MAP) for m in maps))
 
 
-def _place_lanes(lanes, ends, starts, load_free, old, box, back, store):
+def _place_lanes(lanes, ends, starts, load_free, old, box, back, store, moved=None):
     """The body of a call: ``ends`` and ``starts`` (three vectors each) are the
     points and their references in the frame where the box is ``box``
     (:func:`aligned_lanes`'s numbers, each in every lane), ``load_free()``
@@ -60,19 +63,26 @@ def _place_lanes(lanes, ends, starts, load_free, old, box, back, store):
     test, which a pinned point seldom passes), ``old`` the points as read (three
     vectors, the world's); ``back`` maps a placed point to the world (None: it
     is there already); ``store(planes, marks)`` writes three vectors of
-    positions (or None: leave them) and the marks (an i1 vector). Returns the
-    count of marks (i64)."""
+    positions (or None: leave them) and the marks (an i1 vector). ``moved``:
+    where the references stay where they are, |point - reference|² in the
+    world's frame (a turn keeps it), which the far test then takes, and
+    ``starts`` a function that makes the references' vectors, called only
+    behind the test. Returns the count of marks (i64)."""
     b = lanes.builder
     c, h, reach = box[0:3], box[3:6], box[6:12]
     keep, thinnest2 = box[12], box[13]
     ends_in = [lanes.less(lanes.abs(lanes.sub(ends[k], c[k])), h[k]) for k in range(3)]
     inside = b.and_(b.and_(ends_in[0], ends_in[1]), ends_in[2])
-    moves = [lanes.sub(ends[k], starts[k]) for k in range(3)]
-    d2 = lanes.squared(moves)
-    far = lanes.at_least(d2, thinnest2)
+    if moved is None:
+        moves = [lanes.sub(ends[k], starts[k]) for k in range(3)]
+        moved = lanes.squared(moves)
+    far = lanes.at_least(moved, thinnest2)
     count = cgutils.alloca_once_value(b, ir.Constant(ir.IntType(64), 0))
     with b.if_else(lanes.any(b.or_(inside, far)), likely=False) as (some, none):
         with some:
+            if callable(starts):
+                starts = starts()
+                moves = [lanes.sub(ends[k], starts[k]) for k in range(3)]
             free_ = load_free()
             inside = b.and_(inside, free_)
             far = b.and_(far, free_)
@@ -95,8 +105,8 @@ def _place_lanes(lanes, ends, starts, load_free, old, box, back, store):
     return b.load(count)
 
 
-def _codegen(turned):
-    width = TURNED_LANES if turned else ALIGNED_LANES
+def _codegen(turned, still=False):
+    width = (STILL_LANES if still else TURNED_LANES) if turned else ALIGNED_LANES
 
     def codegen(context, builder, signature, args):
         planes_t, refs_t, free_t, marked_t, at_t, box_t = signature.args[:6]
@@ -113,11 +123,19 @@ def _codegen(turned):
             return lanes.nonzero(lanes.load(free_t, free_v, at))
 
         box = lanes.numbers(box_t, box_v)
-        back = None
+        back, moved = None, None
         if turned:
             ref_m, end_m, back_m = (lanes.numbers(signature.args[6 + k], args[6 + k]) for k in range(3))
-            starts = lanes.affine(ref_m, refs)
             ends = lanes.affine(end_m, xyz)
+            if still:
+                # the far test on the move in the world's frame, and the references
+                # turned only where the rule runs (see still_lanes)
+                moved = lanes.squared([lanes.sub(xyz[k], refs[k]) for k in range(3)])
+
+                def starts():
+                    return lanes.affine(ref_m, refs)
+            else:
+                starts = lanes.affine(ref_m, refs)
 
             def back(new):
                 return lanes.affine(back_m, new)
@@ -132,7 +150,7 @@ def _codegen(turned):
             ptr = _vector_at(context, builder, marked_t, marked_v, [at], bytes_)
             builder.store(builder.zext(mark, bytes_), ptr, align=1)
 
-        return _place_lanes(lanes, ends, starts, load_free, xyz, box, back, store)
+        return _place_lanes(lanes, ends, starts, load_free, xyz, box, back, store, moved)
 
     return codegen
 
@@ -159,3 +177,15 @@ def turned_lanes(typingctx, planes, refs, free, marked, at, box, ref, end, back)
     of :func:`.box._frame_maps`, for points ``at:at + TURNED_LANES``."""
     _check(planes, refs, free, marked, box, (ref, end, back))
     return types.int64(planes, refs, free, marked, at, box, ref, end, back), _codegen(True)
+
+
+@intrinsic
+def still_lanes(typingctx, planes, refs, free, marked, at, box, ref, end, back):
+    """:func:`turned_lanes` where the references stay where they are (a still box,
+    or the settle's references, of the substep's end; ``ref`` then turns them
+    as ``end`` turns the points). A turn keeps lengths, so the far test takes
+    the move in the world's frame, as the aligned box's does, and the
+    references are turned (twelve multiply-adds a point) only for the calls
+    where the rule runs."""
+    _check(planes, refs, free, marked, box, (ref, end, back))
+    return types.int64(planes, refs, free, marked, at, box, ref, end, back), _codegen(True, still=True)
