@@ -5,9 +5,10 @@ a substep: 59% of the runs of eight consecutive points hold none, and
 64% of the runs of four. Each call tests its points first
 (ending inside, or moved farther than the box's thinnest side); where none
 is, it only clears their marks, and writes nothing. A box whose axes are the
-world's and that stands still takes four points a call (ALIGNED_LANES), any
-other box eight (TURNED_LANES): each ran faster so (docs/performance.md,
-'Four lanes').
+world's and that stands still takes four points a call (ALIGNED_LANES), a
+still turned box eight with AVX-512 and four without (STILL_LANES), a moving
+box eight (TURNED_LANES): each ran faster so (docs/performance.md, 'Four
+lanes' and 'A turned box's runs').
 
 The arithmetic is that of :func:`.box._axis` and :func:`.box._write_or_mark`,
 in the same order: the positions are those of the loop numba vectorised
