@@ -28,7 +28,7 @@ from numba.extending import intrinsic
 from ..simd import _vector_at, has_avx512f
 from .lanes import MAP, Lanes, check_numbers, check_rows, planes_of
 
-__all__ = ["ALIGNED_LANES", "TURNED_LANES", "aligned_lanes", "still_lanes", "turned_lanes"]
+__all__ = ["ALIGNED_LANES", "STILL_LANES", "TURNED_LANES", "aligned_lanes", "still_lanes", "turned_lanes"]
 
 ALIGNED_LANES = 4
 """points a call of :func:`aligned_lanes` places: one 256-bit vector of doubles"""
