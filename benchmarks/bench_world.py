@@ -2,11 +2,11 @@
 
 Each case is ``sphere.json`` (50x50, self-collision on, one thread) with its
 collider swapped: the still sphere of today; the same sphere spinning; a box
-(a table under the cloth); the same box turned 20° about y; the box sliding
-and turning; the sphere with a 5 m/s wind; no collider at all (what the rest
-of the substep costs). Cases
-run in interleaved rounds, alternating their order, one second of simulated
-time each from the same start; a line per case gives the best and median
+(a table under the cloth); the same box turned 20° about y; the box
+sliding; the box sliding and turning; the sphere with a 5 m/s wind; no
+collider at all (what the rest of the substep costs). Cases run in
+interleaved rounds, alternating their order, one second of simulated time
+each from the same start; a line per case gives the best and median
 substeps/s and microseconds a substep, and how much more than the still
 sphere's substep it costs.
 
@@ -16,14 +16,14 @@ scenes, not colliders. ``--kernels`` times the collider kernels alone instead,
 each on the cloth of its own case after 1.5 s (draped on the sphere, lying
 on the box) one substep's fall further, called on a fresh copy of it many
 times (the copy's own time taken off), best of the rounds: the still sphere,
-the spinning sphere (on the still one's cloth), the box, the turned box
-(on its own cloth), the box moving, the wind (its pass over the triangles:
-the grid path's stencils, and the general path's loop over a triangle
-list), per call of one substep; and
-the still sphere's kernel as it stood at `c978e85` (``sphere_then.py``),
-the sphere issue 21 measures a box and an animated sphere against. Each
-line gives the kernel's cost as a multiple of today's still sphere
-(``of_sphere``) and of that one (``of_sphere_then``).
+the spinning sphere (on the still one's cloth), the box, the turned box (on
+its own cloth), the box sliding, the box sliding and turning, the wind (its
+pass over the triangles: the grid path's stencils, and the general path's
+loop over a triangle list), per call of one substep; and the still sphere's
+kernel as it stood at `c978e85` (``sphere_then.py``), the sphere issue 21
+measures a box and an animated sphere against. Each line gives the kernel's
+cost as a multiple of today's still sphere (``of_sphere``) and of that one
+(``of_sphere_then``).
 
     python benchmarks/bench_world.py [--rounds 5] [--seconds 1] [--kernels]
 """
@@ -48,6 +48,7 @@ SLOT = 3
 TURN = [0, 20, 0]
 """[degrees] the turned box's own rotation: its axes are not the world's, so its
 pass turns every point into its frame, as a moving box's does"""
+SLIDE_ONLY = {"keys": [{"t": 0}, {"t": 2, "translate": [0.2, 0, 0]}], "loop": True}
 SLIDE = {"keys": [{"t": 0}, {"t": 2, "translate": [0.2, 0, 0], "rotate": [0, 30, 0]}], "loop": True}
 
 
@@ -59,6 +60,7 @@ def cases(base: dict) -> dict[str, dict]:
     no_sphere = {k: v for k, v in base.items() if k != "sphere"}
     out["box"] = {**no_sphere, "box": box}
     out["turned box"] = {**no_sphere, "box": {**box, "rotate": TURN}}
+    out["sliding box"] = {**no_sphere, "box": {**box, "animation": SLIDE_ONLY}}
     out["moving box"] = {**no_sphere, "box": {**box, "animation": SLIDE}}
     out["sphere + wind"] = {**base, "wind": {"velocity": [5.0, 0.0, 0.0]}}
     out["no collider"] = no_sphere
@@ -113,10 +115,13 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     s0, b0 = sim.spheres[0], on_box[3].boxes[0]
     moving_sphere = type(s0)(s0.origin, s0.radius, s0.friction, spin)
     moving_box = type(b0)(b0.center, b0.size, b0.friction, animation=slide)
+    sliding_box = type(b0)(b0.center, b0.size, b0.friction,
+                           animation=Animation((Keyframe(start), Keyframe(start + 2.0, (0.2, 0.0, 0.0)))))
     work = {"sphere": (sphere.collide_spheres, sphere.pack([s0], 1.5, dt, steps), on_sphere),
             "spinning sphere": (sphere.collide_spheres, sphere.pack([moving_sphere], 1.5, dt, steps), on_sphere),
             "box": (box.collide_boxes, box.pack([b0], 1.5, dt, steps), on_box),
             "turned box": (box.collide_boxes, box.pack([on_turned[3].boxes[0]], 1.5, dt, steps), on_turned),
+            "sliding box": (box.collide_boxes, box.pack([sliding_box], 1.5, dt, steps), on_box),
             "moving box": (box.collide_boxes, box.pack([moving_box], 1.5, dt, steps), on_box),
             "sphere at c978e85": (sphere_then.collide_spheres, sphere_then.pack([s0]), on_sphere)}
     wind = pack_wind(WindSpec((5.0, 0.0, 0.0)), 1.5, dt)

@@ -161,13 +161,17 @@ def test_points_by_a_turned_box_that_moved_about_its_thinnest_side_are_marked_as
     past the box's thinnest side (they may have gone through it: marked) or just
     short of it (not marked): for a still box turned on all three axes, whose
     runs take the move's length in the world's frame and turn the references
-    only where a run's rule runs, and for the same box sliding and turning,
-    whose runs turn every reference, the runs mark the same points as the
-    pass of a single point, and move none"""
+    only where a run's rule runs, for the same box sliding and turning, whose
+    runs turn every reference, and for a box along the world's axes that
+    slides, whose runs carry the references by the slide alone, the runs mark
+    the same points as the pass of a single point, and move none"""
     rng = np.random.default_rng(7)
     size = np.array([0.6, 0.2, 0.5])
-    for animation in (None, Animation((Keyframe(0.0), Keyframe(1.0, (0.05, 0.0, 0.0), (3.0, 10.0, 0.0))))):
-        b = SimpleNamespace(center=np.array([0.1, 0.4, -0.2]), size=size, rotate=(12.0, 35.0, -20.0), friction=0.5,
+    turned = (12.0, 35.0, -20.0)
+    turning = Animation((Keyframe(0.0), Keyframe(1.0, (0.05, 0.0, 0.0), (3.0, 10.0, 0.0))))
+    sliding = Animation((Keyframe(0.0), Keyframe(1.0, (0.05, -0.02, 0.03))))
+    for rotate, animation in ((turned, None), (turned, turning), ((0.0, 0.0, 0.0), sliding)):
+        b = SimpleNamespace(center=np.array([0.1, 0.4, -0.2]), size=size, rotate=rotate, friction=0.5,
                             margin=1e-3, animation=animation)
         rows = box.pack([b], 0.0, 1.0, 1)
         row = rows[0, 0]
@@ -189,10 +193,11 @@ def test_points_by_a_turned_box_that_moved_about_its_thinnest_side_are_marked_as
         free = np.ones(n)
         moving = animation is not None
         runs = np.zeros(n, dtype=np.bool_)
-        count = box._common(P, refs, free, row, 0, runs, moving, True, False)
+        aligned = rotate == (0.0, 0.0, 0.0)
+        count = box._common(P, refs, free, row, 0, runs, moving, True, aligned)
         ones = np.zeros(n, dtype=np.bool_)
         for p in range(n):
-            box._common(P, refs, free, row, p, ones[p:p + 1], moving, True, False)
+            box._common(P, refs, free, row, p, ones[p:p + 1], moving, True, aligned)
         expected = np.zeros(n, dtype=np.bool_)
         expected[past] = True
         np.testing.assert_array_equal(runs, expected)

@@ -20,7 +20,8 @@ from numba import njit
 from ...motion import rotation_matrices
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
-from .box_lanes import ALIGNED_LANES, STILL_LANES, TURNED_LANES, aligned_lanes, still_lanes, turned_lanes
+from .box_lanes import (ALIGNED_LANES, STILL_LANES, TURNED_LANES, aligned_lanes, sliding_lanes, still_lanes,
+                        turned_lanes)
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 COLUMNS = 17
@@ -189,11 +190,12 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     face every substep) is placed; ``marked`` is set for the others that end
     inside, and for those that moved farther than the box's thinnest side
     (only such a move can go right through the box and end outside).
-    ``aligned``: the box's axes are the world's. A still box whose axes are the
-    world's takes a loop of its own, without the turns into and out of its
-    frame or the carry (:func:`_aligned_loop`); any other, the general one
-    (:func:`_turned_loop`): written as branches inside one loop, LLVM computed
-    both sides for every point. Returns how many points it marked."""
+    ``aligned``: the box's axes are the world's. A box whose axes are the
+    world's and that stands still or only slides takes a loop of its own,
+    without the turns into and out of its frame (:func:`_aligned_loop`); any
+    other, the general one (:func:`_turned_loop`): written as branches inside
+    one loop, LLVM computed both sides for every point. Returns how many
+    points it marked."""
     n = marked.shape[0]
     planes = (P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n])
     refs = (R[0, lo:lo + n], R[1, lo:lo + n], R[2, lo:lo + n])
@@ -202,9 +204,20 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
             row[12], row[13], row[14], 1.0 - row[15] if friction else 0.0, row[16])
     if not carry:  # a still box, or the settle's references (of the substep's end)
         if aligned:
-            return _aligned_loop(planes, refs, fr, marked, box_)
+            return _aligned_loop(planes, refs, fr, marked, box_, None)
         return _turned_loop(planes, refs, fr, marked, box_, None)
-    return _turned_loop(planes, refs, fr, marked, box_, carry_of(row, COLUMNS))
+    a = carry_of(row, COLUMNS)
+    if aligned and _slides(a):
+        return _aligned_loop(planes, refs, fr, marked, box_, (a[9], a[10], a[11]))
+    return _turned_loop(planes, refs, fr, marked, box_, a)
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def _slides(a):
+    """whether the carry ``a`` (:func:`.motion_rows.carry_of`) only slides: its turn
+    is the identity, to the bit"""
+    return (a[0] == 1.0 and a[4] == 1.0 and a[8] == 1.0 and a[1] == 0.0 and a[2] == 0.0 and a[3] == 0.0
+            and a[5] == 0.0 and a[6] == 0.0 and a[7] == 0.0)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -215,13 +228,15 @@ def _thinnest2(box_):
 
 
 @njit(**KERNEL_OPTIONS)
-def _aligned_loop(planes, refs, fr, marked, box_):
-    """:func:`_common`'s loop for a still box whose axes are the world's (``box_``:
-    centre (3), axes (9), half sizes (3), 1 - friction, margin): the rule in
-    world coordinates about the centre, ALIGNED_LANES points at a time in the
-    vector code of :func:`.box_lanes.aligned_lanes` (which skips a run that no
-    rule touches), the last few one by one in the same arithmetic. Returns how
-    many it marked."""
+def _aligned_loop(planes, refs, fr, marked, box_, shift):
+    """:func:`_common`'s loop for a box whose axes are the world's (``box_``:
+    centre (3), axes (9), half sizes (3), 1 - friction, margin) and that stands
+    still (``shift`` None) or only slides by ``shift`` (3 floats [m], which
+    carries the references): the rule in world coordinates about the centre,
+    ALIGNED_LANES points at a time in the vector code of
+    :func:`.box_lanes.aligned_lanes` (or :func:`.box_lanes.sliding_lanes`),
+    which skips a run that no rule touches, the last few one by one in the
+    same arithmetic. Returns how many it marked."""
     x, y, z = planes
     rx, ry, rz = refs
     cx, cy, cz = box_[0], box_[1], box_[2]
@@ -235,9 +250,14 @@ def _aligned_loop(planes, refs, fr, marked, box_):
     full = n - n % ALIGNED_LANES
     lanes_box = (cx, cy, cz, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
     for q in range(0, full, ALIGNED_LANES):
-        count += aligned_lanes(planes, refs, fr, marked, q, lanes_box)
+        if shift is None:
+            count += aligned_lanes(planes, refs, fr, marked, q, lanes_box)
+        else:
+            count += sliding_lanes(planes, refs, fr, marked, q, lanes_box, shift)
     for p in range(full, n):
         mx, my, mz = rx[p], ry[p], rz[p]
+        if shift is not None:
+            mx, my, mz = mx + shift[0], my + shift[1], mz + shift[2]
         xp, yp, zp = x[p], y[p], z[p]
         free_ = fr[p] != 0.0
         inside = (abs(xp - cx) < hu) & (abs(yp - cy) < hv) & (abs(zp - cz) < hw) & free_

@@ -28,7 +28,8 @@ from numba.extending import intrinsic
 from ..simd import _vector_at, has_avx512f
 from .lanes import MAP, Lanes, check_numbers, check_rows, planes_of
 
-__all__ = ["ALIGNED_LANES", "STILL_LANES", "TURNED_LANES", "aligned_lanes", "still_lanes", "turned_lanes"]
+__all__ = ["ALIGNED_LANES", "STILL_LANES", "TURNED_LANES", "aligned_lanes", "sliding_lanes", "still_lanes",
+           "turned_lanes"]
 
 ALIGNED_LANES = 4
 """points a call of :func:`aligned_lanes` places: one 256-bit vector of doubles"""
@@ -142,6 +143,9 @@ def _codegen(turned, still=False):
                 return lanes.affine(back_m, new)
         else:
             starts, ends = refs, xyz
+            if len(args) == 7:  # a sliding box: the references carried by its slide
+                shift = lanes.numbers(signature.args[6], args[6])
+                starts = [lanes.add(refs[k], shift[k]) for k in range(3)]
 
         def store(values, mark):
             if values is not None:
@@ -169,6 +173,16 @@ def aligned_lanes(typingctx, planes, refs, free, marked, at, box):
     bounds-checked: the caller keeps ``at + ALIGNED_LANES`` within every array."""
     _check(planes, refs, free, marked, box)
     return types.int64(planes, refs, free, marked, at, box), _codegen(False)
+
+
+@intrinsic
+def sliding_lanes(typingctx, planes, refs, free, marked, at, box, shift):
+    """:func:`aligned_lanes` for a box whose axes are the world's and that only
+    slides over the substep: its references carried by ``shift`` (3 floats,
+    [m]), the box's move."""
+    _check(planes, refs, free, marked, box)
+    check_numbers("the box's lanes", ((shift, 3),))
+    return types.int64(planes, refs, free, marked, at, box, shift), _codegen(False)
 
 
 @intrinsic
