@@ -358,7 +358,9 @@ def collide_boxes(P, L, free, boxes, lo, hi, s):
 @njit(**KERNEL_OPTIONS)
 def settle_boxes(P, Q, free, boxes, lo, hi, s):
     """Points ``lo:hi`` that a later pass moved from Q (after the colliders) into a
-    box are put back at the face they crossed, margin outside, with no friction."""
+    box are put back at Q, where the colliders left them, outside it (the
+    friction rule with its keep at 0); one that was inside already goes out
+    through the nearest face, margin outside."""
     if boxes is None:
         return
     _boxes_pass(P, Q, free, boxes, lo, hi, s, False, False)
