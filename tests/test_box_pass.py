@@ -2,7 +2,9 @@
 geometry: random boxes along the world's axes or turned, still or sliding,
 thin or thick, and random segments, among them fast ones that go right
 through the box. Both of the vector pass's loops and the scalar pass are
-reached: an aligned still box takes one loop, any other box the other."""
+reached: an aligned box, still or sliding, takes one loop, any other box the
+other (still, its references turned only where a run's rule runs; moving,
+carried and turned everywhere)."""
 
 from __future__ import annotations
 

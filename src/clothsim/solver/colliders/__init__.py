@@ -61,9 +61,10 @@ def collide(P, L, free, control, lo, hi, s):
 
 @njit(cache=True)
 def settle(P, Q, L, free, control, lo, hi, s):
-    """Points ``lo:hi`` that the Provot pass moved from Q into a box or across a
-    mesh are put back (at Q, and where they crossed), and those it left deep
-    in a sphere go out to its surface (see the module); L: the last positions."""
+    """Points ``lo:hi`` that the Provot pass moved from Q into a box are put back
+    at Q, those it moved across a mesh where they crossed, and those it left
+    deep in a sphere go out to its surface (see the module); L: the last
+    positions."""
     settle_spheres(P, L, free, control.spheres, lo, hi, s)
     settle_boxes(P, Q, free, control.boxes, lo, hi, s)
     settle_meshes(P, Q, free, control, lo, hi, s)

@@ -190,12 +190,13 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     face every substep) is placed; ``marked`` is set for the others that end
     inside, and for those that moved farther than the box's thinnest side
     (only such a move can go right through the box and end outside).
-    ``aligned``: the box's axes are the world's. A box whose axes are the
-    world's and that stands still or only slides takes a loop of its own,
-    without the turns into and out of its frame (:func:`_aligned_loop`); any
-    other, the general one (:func:`_turned_loop`): written as branches inside
-    one loop, LLVM computed both sides for every point. Returns how many
-    points it marked."""
+    ``aligned``: the box's axes are the world's (at the end of the substep). A
+    box whose axes are the world's and whose references are not carried (a
+    still box, or any box's settle, ``carry`` False) or only slide takes a loop
+    of its own, without the turns into and out of its frame
+    (:func:`_aligned_loop`); any other, the general one (:func:`_turned_loop`):
+    written as branches inside one loop, LLVM computed both sides for every
+    point. Returns how many points it marked."""
     n = marked.shape[0]
     planes = (P[0, lo:lo + n], P[1, lo:lo + n], P[2, lo:lo + n])
     refs = (R[0, lo:lo + n], R[1, lo:lo + n], R[2, lo:lo + n])
@@ -306,8 +307,9 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     :func:`.box_lanes.turned_lanes`, the last few one by one. ``a`` None: the
     references stay where they are (a still box, or the settle's), and the
     far test takes the move in the world's frame, which the turn keeps
-    (:func:`.box_lanes.still_lanes`, which then turns the references only
-    where a run's rule runs). Returns as :func:`_aligned_loop`."""
+    (:func:`.box_lanes.still_lanes`, STILL_LANES at a time, which then turns
+    the references only where a run's rule runs). Returns as
+    :func:`_aligned_loop`."""
     x, y, z = planes
     rx, ry, rz = refs
     hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]

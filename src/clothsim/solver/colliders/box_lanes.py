@@ -5,10 +5,11 @@ a substep: 59% of the runs of eight consecutive points hold none, and
 64% of the runs of four. Each call tests its points first
 (ending inside, or moved farther than the box's thinnest side); where none
 is, it only clears their marks, and writes nothing. A box whose axes are the
-world's and that stands still takes four points a call (ALIGNED_LANES), a
-still turned box eight with AVX-512 and four without (STILL_LANES), a moving
-box eight (TURNED_LANES): each ran faster so (docs/performance.md, 'Four
-lanes' and 'A turned box's runs').
+world's and that stands still or only slides takes four points a call
+(ALIGNED_LANES); a turned box whose references are not carried (a still
+one, or any box's settle) eight with AVX-512 and four without (STILL_LANES);
+any other moving box eight (TURNED_LANES): each ran faster so
+(docs/performance.md, 'Four lanes' and 'A turned box's runs').
 
 The arithmetic is that of :func:`.box._axis` and :func:`.box._write_or_mark`,
 in the same order: the positions are those of the loop numba vectorised
@@ -32,7 +33,8 @@ __all__ = ["ALIGNED_LANES", "STILL_LANES", "TURNED_LANES", "aligned_lanes", "sli
            "turned_lanes"]
 
 ALIGNED_LANES = 4
-"""points a call of :func:`aligned_lanes` places: one 256-bit vector of doubles"""
+"""points a call of :func:`aligned_lanes` or :func:`sliding_lanes` places: one
+256-bit vector of doubles"""
 
 TURNED_LANES = 8
 """points a call of :func:`turned_lanes` places: its turns into and out of the
