@@ -81,15 +81,15 @@ def test_the_collider_loops_store_whole_vectors(kind):
         kernel, rows = plane.collide_planes, plane.pack([_Obj(point=(0, 0, 0), normal=(0, 1, 0), friction=0.3)])
     else:
         # both of the vector pass's loops, each still and moving: the aligned box's
-        # (sliding) and the general one (turning)
+        # (sliding) and the general one (sliding, or turning)
         row = box.pack([_Obj(center=(0, 0, 0), size=(1, 0.4, 1), rotate=(0, 0, 0), friction=0.3, margin=1e-3)])[0, 0]
         box_ = tuple(float(v) for v in row[:17])
         planes, refs, marked = (P[0], P[1], P[2]), (L[0], L[1], L[2]), np.zeros(n, dtype=np.bool_)
         carry = tuple(float(v) for v in row[17:])
         for shift in (None, (0.01, 0.0, -0.02)):
             assert not _masked_stores(_asm(box._aligned_loop, planes, refs, free, marked, box_, shift))
-        for a in (None, carry):
-            assert not _masked_stores(_asm(box._turned_loop, planes, refs, free, marked, box_, a))
+        for a, shift in ((None, None), (carry, None), (carry, (0.01, 0.0, -0.02))):
+            assert not _masked_stores(_asm(box._turned_loop, planes, refs, free, marked, box_, a, shift))
         return
     asm = _asm(kernel, P, L, free, rows, lo, hi, s)
     assert not _masked_stores(asm)

@@ -164,15 +164,16 @@ def test_points_by_a_turned_box_that_moved_about_its_thinnest_side_are_marked_as
     short of it (not marked): for a still box turned on all three axes, whose
     runs take the move's length in the world's frame and turn the references
     only where a run's rule runs, for the same box sliding and turning, whose
-    runs turn every reference, and for a box along the world's axes that
-    slides, whose runs carry the references by the slide alone, the runs mark
-    the same points as the pass of a single point, and move none"""
+    runs turn every reference, and for a box along the world's axes and the
+    turned one that only slide, whose runs test the move from the references
+    carried by the slide alone, the runs mark the same points as the pass of
+    a single point, and move none"""
     rng = np.random.default_rng(7)
     size = np.array([0.6, 0.2, 0.5])
     turned = (12.0, 35.0, -20.0)
     turning = Animation((Keyframe(0.0), Keyframe(1.0, (0.05, 0.0, 0.0), (3.0, 10.0, 0.0))))
     sliding = Animation((Keyframe(0.0), Keyframe(1.0, (0.05, -0.02, 0.03))))
-    for rotate, animation in ((turned, None), (turned, turning), ((0.0, 0.0, 0.0), sliding)):
+    for rotate, animation in ((turned, None), (turned, turning), ((0.0, 0.0, 0.0), sliding), (turned, sliding)):
         b = SimpleNamespace(center=np.array([0.1, 0.4, -0.2]), size=size, rotate=rotate, friction=0.5,
                             margin=1e-3, animation=animation)
         rows = box.pack([b], 0.0, 1.0, 1)

@@ -20,8 +20,8 @@ from numba import njit
 from ...motion import rotation_matrices
 from ..blend import write_point
 from ..shared import KERNEL_OPTIONS
-from .box_lanes import (ALIGNED_LANES, STILL_LANES, TURNED_LANES, aligned_lanes, sliding_lanes, still_lanes,
-                        turned_lanes)
+from .box_lanes import (ALIGNED_LANES, STILL_LANES, TURNED_LANES, aligned_lanes, sliding_lanes,
+                        sliding_turned_lanes, still_lanes, turned_lanes)
 from .motion_rows import carry_of, carry_point, frame_poses, moving_rows, stack_slots
 
 COLUMNS = 17
@@ -206,11 +206,13 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
     if not carry:  # a still box, or the settle's references (of the substep's end)
         if aligned:
             return _aligned_loop(planes, refs, fr, marked, box_, None)
-        return _turned_loop(planes, refs, fr, marked, box_, None)
+        return _turned_loop(planes, refs, fr, marked, box_, None, None)
     a = carry_of(row, COLUMNS)
-    if aligned and _slides(a):
-        return _aligned_loop(planes, refs, fr, marked, box_, (a[9], a[10], a[11]))
-    return _turned_loop(planes, refs, fr, marked, box_, a)
+    if _slides(a):
+        if aligned:
+            return _aligned_loop(planes, refs, fr, marked, box_, (a[9], a[10], a[11]))
+        return _turned_loop(planes, refs, fr, marked, box_, a, (a[9], a[10], a[11]))
+    return _turned_loop(planes, refs, fr, marked, box_, a, None)
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
@@ -299,7 +301,7 @@ _STAY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 
 
 @njit(**KERNEL_OPTIONS)
-def _turned_loop(planes, refs, fr, marked, box_, a):
+def _turned_loop(planes, refs, fr, marked, box_, a, shift):
     """:func:`_common`'s loop for any box: each reference position carried by the
     box's motion ``a`` (:func:`.motion_rows.carry_of`) and turned into the
     box's frame in one map, the end turned too, the rule there, and the
@@ -308,8 +310,10 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     references stay where they are (a still box, or the settle's), and the
     far test takes the move in the world's frame, which the turn keeps
     (:func:`.box_lanes.still_lanes`, STILL_LANES at a time, which then turns
-    the references only where a run's rule runs). Returns as
-    :func:`_aligned_loop`."""
+    the references only where a run's rule runs). ``shift`` (3 floats [m]), a
+    box that only slides, by ``shift`` (``a``'s turn is the identity): the
+    same, the far test taking the move from the reference carried by the
+    slide. Returns as :func:`_aligned_loop`."""
     x, y, z = planes
     rx, ry, rz = refs
     hu, hv, hw, keep, margin = box_[12], box_[13], box_[14], box_[15], box_[16]
@@ -320,12 +324,14 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
     thinnest2 = _thinnest2(box_)
     count = 0
     n = marked.shape[0]
-    width = STILL_LANES if a is None else TURNED_LANES
+    width = STILL_LANES if a is None or shift is not None else TURNED_LANES
     full = n - n % width
     lanes_box = (0.0, 0.0, 0.0, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
     for q in range(0, full, width):
         if a is None:
             count += still_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
+        elif shift is not None:
+            count += sliding_turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back, shift)
         else:
             count += turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
     for p in range(full, n):
@@ -339,6 +345,8 @@ def _turned_loop(planes, refs, fr, marked, box_, a):
         out_w, fw, dw = _axis(w0, w1, 0.0, hw, reach_w, keep)
         if a is None:  # as still_lanes: the move in the world's frame
             du, dv, dw = xp - rx[p], yp - ry[p], zp - rz[p]
+        elif shift is not None:  # from the reference carried by the slide
+            du, dv, dw = xp - (rx[p] + shift[0]), yp - (ry[p] + shift[1]), zp - (rz[p] + shift[2])
         far = (du * du + dv * dv + dw * dw >= thinnest2) & free_
         count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), far, carry_point(back, fu, fv, fw),
                                 (xp, yp, zp))

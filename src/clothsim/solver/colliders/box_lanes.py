@@ -29,8 +29,8 @@ from numba.extending import intrinsic
 from ..simd import _vector_at, has_avx512f
 from .lanes import MAP, Lanes, check_numbers, check_rows, planes_of
 
-__all__ = ["ALIGNED_LANES", "STILL_LANES", "TURNED_LANES", "aligned_lanes", "sliding_lanes", "still_lanes",
-           "turned_lanes"]
+__all__ = ["ALIGNED_LANES", "STILL_LANES", "TURNED_LANES", "aligned_lanes", "sliding_lanes", "sliding_turned_lanes",
+           "still_lanes", "turned_lanes"]
 
 ALIGNED_LANES = 4
 """points a call of :func:`aligned_lanes` or :func:`sliding_lanes` places: one
@@ -134,7 +134,11 @@ def _codegen(turned, still=False):
             if still:
                 # the far test on the move in the world's frame, and the references
                 # turned only where the rule runs (see still_lanes)
-                moved = lanes.squared([lanes.sub(xyz[k], refs[k]) for k in range(3)])
+                carried = refs
+                if len(args) == 10:  # a sliding box: the references carried by its slide
+                    shift = lanes.numbers(signature.args[9], args[9])
+                    carried = [lanes.add(refs[k], shift[k]) for k in range(3)]
+                moved = lanes.squared([lanes.sub(xyz[k], carried[k]) for k in range(3)])
 
                 def starts():
                     return lanes.affine(ref_m, refs)
@@ -206,3 +210,14 @@ def still_lanes(typingctx, planes, refs, free, marked, at, box, ref, end, back):
     where the rule runs."""
     _check(planes, refs, free, marked, box, (ref, end, back))
     return types.int64(planes, refs, free, marked, at, box, ref, end, back), _codegen(True, still=True)
+
+
+@intrinsic
+def sliding_turned_lanes(typingctx, planes, refs, free, marked, at, box, ref, end, back, shift):
+    """:func:`still_lanes` for a turned box that only slides, by ``shift`` (3
+    floats [m]: its carry's turn is the identity, and ``ref`` carries the
+    references by the slide and turns them): the far test takes the move from
+    the references so carried, in the world's frame."""
+    _check(planes, refs, free, marked, box, (ref, end, back))
+    check_numbers("the box's lanes", ((shift, 3),))
+    return types.int64(planes, refs, free, marked, at, box, ref, end, back, shift), _codegen(True, still=True)
