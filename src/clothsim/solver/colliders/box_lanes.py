@@ -7,8 +7,8 @@ a substep: 59% of the runs of eight consecutive points hold none, and
 is, it only clears their marks, and writes nothing. A box whose axes are the
 world's and that stands still or only slides takes four points a call
 (ALIGNED_LANES); a turned box whose references are not carried (a still
-one, or any box's settle) eight with AVX-512 and four without (STILL_LANES);
-any other moving box eight (TURNED_LANES): each ran faster so
+one, or any box's settle) or only slide eight with AVX-512 and four without
+(STILL_LANES); any other moving box eight (TURNED_LANES): each ran faster so
 (docs/performance.md, 'Four lanes' and 'A turned box's runs').
 
 The arithmetic is that of :func:`.box._axis` and :func:`.box._write_or_mark`,
