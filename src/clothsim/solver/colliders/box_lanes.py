@@ -109,7 +109,7 @@ def _place_lanes(lanes, ends, starts, load_free, old, box, back, store, moved=No
     return b.load(count)
 
 
-def _codegen(turned, still=False):
+def _codegen(turned, still=False, sliding=False):
     width = (STILL_LANES if still else TURNED_LANES) if turned else ALIGNED_LANES
 
     def codegen(context, builder, signature, args):
@@ -128,17 +128,22 @@ def _codegen(turned, still=False):
 
         box = lanes.numbers(box_t, box_v)
         back, moved = None, None
+
+        def carried():
+            """the references, carried by a sliding box's slide (its last argument)"""
+            if not sliding:
+                return refs
+            shift = lanes.numbers(signature.args[-1], args[-1])
+            return [lanes.add(refs[k], shift[k]) for k in range(3)]
+
         if turned:
             ref_m, end_m, back_m = (lanes.numbers(signature.args[6 + k], args[6 + k]) for k in range(3))
             ends = lanes.affine(end_m, xyz)
             if still:
                 # the far test on the move in the world's frame, and the references
                 # turned only where the rule runs (see still_lanes)
-                carried = refs
-                if len(args) == 10:  # a sliding box: the references carried by its slide
-                    shift = lanes.numbers(signature.args[9], args[9])
-                    carried = [lanes.add(refs[k], shift[k]) for k in range(3)]
-                moved = lanes.squared([lanes.sub(xyz[k], carried[k]) for k in range(3)])
+                starts_world = carried()
+                moved = lanes.squared([lanes.sub(xyz[k], starts_world[k]) for k in range(3)])
 
                 def starts():
                     return lanes.affine(ref_m, refs)
@@ -148,10 +153,7 @@ def _codegen(turned, still=False):
             def back(new):
                 return lanes.affine(back_m, new)
         else:
-            starts, ends = refs, xyz
-            if len(args) == 7:  # a sliding box: the references carried by its slide
-                shift = lanes.numbers(signature.args[6], args[6])
-                starts = [lanes.add(refs[k], shift[k]) for k in range(3)]
+            starts, ends = carried(), xyz
 
         def store(values, mark):
             if values is not None:
@@ -188,7 +190,7 @@ def sliding_lanes(typingctx, planes, refs, free, marked, at, box, shift):
     [m]), the box's move."""
     _check(planes, refs, free, marked, box)
     check_numbers("the box's lanes", ((shift, 3),))
-    return types.int64(planes, refs, free, marked, at, box, shift), _codegen(False)
+    return types.int64(planes, refs, free, marked, at, box, shift), _codegen(False, sliding=True)
 
 
 @intrinsic
@@ -220,4 +222,5 @@ def sliding_turned_lanes(typingctx, planes, refs, free, marked, at, box, ref, en
     the references so carried, in the world's frame."""
     _check(planes, refs, free, marked, box, (ref, end, back))
     check_numbers("the box's lanes", ((shift, 3),))
-    return types.int64(planes, refs, free, marked, at, box, ref, end, back, shift), _codegen(True, still=True)
+    return types.int64(planes, refs, free, marked, at, box, ref, end, back, shift), _codegen(True, still=True,
+                                                                                             sliding=True)
