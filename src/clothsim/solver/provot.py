@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .provot_lanes import over_word
 from .shared import BLOCK, KERNEL_OPTIONS, gap2, over_length, pop_lowest
 
 MAX_STRETCH = 1.1
@@ -30,8 +31,9 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
 
     Few springs are over the limit at any time (a mean of 4 to 8 in each
     block of BLOCK that has one, in the standard scenes). So the whole set is
-    first checked in a vectorised loop without square roots that only sets a
-    bit per spring over, and then only those springs are corrected, one by
+    first checked without square roots, a bit per spring over, a word per
+    BLOCK springs (:func:`.provot_lanes.over_word`, the last few in a
+    vectorised loop), and then only those springs are corrected, one by
     one, which spares the mostly wasted work of correcting whole flagged
     blocks as vectors (figures: docs/performance.md, 'Provot'). The check
     serves both batches: a spring of the second batch can only have changed
@@ -55,8 +57,13 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
         first, stop = max(plo, 0), min(phi, count[s])
         lim_s, batch_s, wa, wb = limit[s], batch[s], share[s, 0], share[s, 1]
         words = 0
-        for q in range(first, stop, BLOCK):
-            n = min(BLOCK, stop - q)
+        full = stop - max(stop - first, 0) % BLOCK  # the blocks of BLOCK whole springs end here
+        for q in range(first, full, BLOCK):
+            found[words] = over_word((x, y, z), oa, ob, lim_s, q)
+            again[words] = 0
+            words += 1
+        for q in range(max(full, first), stop, BLOCK):  # the last few, if any
+            n = stop - q
             xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
             xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
             lim = lim_s[q:]
