@@ -58,7 +58,7 @@ from numba import njit, prange
 
 from clothsim import Simulation
 from clothsim.solver.mesh_pulls import rows_buffer, to_rows
-from clothsim.solver.provot import provot
+from clothsim.solver.provot import check_set, provot
 from clothsim.solver.selfcollide.buffers import BUCKET, PAIRS, SKIN, VALID
 from clothsim.solver.selfcollide.collide import self_collide
 from clothsim.solver.selfcollide.drift import copy_and_level, drift_bound, widened2
@@ -67,7 +67,7 @@ from clothsim.solver.selfcollide.listbuild import build_list
 from clothsim.solver.selfcollide.nearstencil import NEAR_LEVELS, near_pushes
 from clothsim.solver.selfcollide.pushes import apply_pushes, pair_pushes
 from clothsim.solver.selfcollide.slack import SLACK_BUCKETS, label_pairs, sort_by_slack
-from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
+from clothsim.solver.shared import KERNEL_OPTIONS
 from clothsim.solver.springs import integrate, spring_forces, verlet_gather
 from clothsim.solver.step import _part_span, _gather_planes
 
@@ -165,22 +165,8 @@ WRAPPED = {parallel: [njit(parallel=parallel)(f) for f in (_springs, _provot, _s
 def provot_check(P, springs, masks):
     """The Provot pass's first loop alone: a bit per spring over its limit, every set."""
     start, end, count, limit = springs.start, springs.end, springs.count, springs.limit
-    x, y, z = P[0], P[1], P[2]
-    found = masks[0]
     for s in range(6):
-        oa, ob = start[s], end[s]
-        lim_s = limit[s]
-        words = 0
-        for q in range(0, count[s], BLOCK):
-            xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
-            xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
-            lim = lim_s[q:]
-            mask = np.uint64(0)
-            for p in range(min(BLOCK, count[s] - q)):
-                over = gap2(xa, ya, za, p, xb, yb, zb, p) > lim[p] * lim[p]
-                mask |= np.uint64(1 if over else 0) << np.uint64(p)
-            found[words] = mask
-            words += 1
+        check_set((P[0], P[1], P[2]), start[s], end[s], limit[s], 0, count[s], masks[0], masks[1])
 
 
 class Copy:

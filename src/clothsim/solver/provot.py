@@ -32,8 +32,7 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
     Few springs are over the limit at any time (a mean of 4 to 8 in each
     block of BLOCK that has one, in the standard scenes). So the whole set is
     first checked without square roots, a bit per spring over, a word per
-    BLOCK springs (:func:`.provot_lanes.over_word`, the last few in a
-    vectorised loop), and then only those springs are corrected, one by
+    BLOCK springs (:func:`check_set`), and then only those springs are corrected, one by
     one, which spares the mostly wasted work of correcting whole flagged
     blocks as vectors (figures: docs/performance.md, 'Provot'). The check
     serves both batches: a spring of the second batch can only have changed
@@ -56,24 +55,7 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
         plo, phi = (lo - ob, lo - oa) if crossing else (lo - oa, hi - ob)
         first, stop = max(plo, 0), min(phi, count[s])
         lim_s, batch_s, wa, wb = limit[s], batch[s], share[s, 0], share[s, 1]
-        words = 0
-        full = stop - max(stop - first, 0) % BLOCK  # the blocks of BLOCK whole springs end here
-        for q in range(first, full, BLOCK):
-            found[words] = over_word((x, y, z), oa, ob, lim_s, q)
-            again[words] = 0
-            words += 1
-        for q in range(max(full, first), stop, BLOCK):  # the last few, if any
-            n = stop - q
-            xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
-            xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
-            lim = lim_s[q:]
-            mask = np.uint64(0)  # an or of shifted selects vectorises
-            for p in range(n):
-                over = gap2(xa, ya, za, p, xb, yb, zb, p) > lim[p] * lim[p]
-                mask |= np.uint64(1 if over else 0) << np.uint64(p)
-            found[words] = mask
-            again[words] = 0
-            words += 1
+        words = check_set((x, y, z), oa, ob, lim_s, first, stop, found, again)
         for w in range(words):
             mask = found[w]
             while mask != 0:
@@ -95,6 +77,36 @@ def provot(P, springs, enabled, masks, lo, hi, crossing):
                 a, b = oa + p, ob + p
                 if gap2(x, y, z, a, x, y, z, b) > lim_s[p] * lim_s[p]:
                     shorten(P, a, b, lim_s[p], wa[p], wb[p])
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def check_set(planes, oa, ob, lim_s, first, stop, found, again):
+    """The check of springs ``first:stop`` of a set joining point ``oa + p`` to
+    ``ob + p`` of ``planes`` (x, y, z) [m], each against its limit ``lim_s[p]``
+    [m]: a bit per spring over it into ``found``, a word per BLOCK springs from
+    ``first``, the same words of ``again`` cleared. The whole blocks as
+    vector comparisons' bytes (:func:`.provot_lanes.over_word`), the last few
+    in a loop. Returns the count of words."""
+    x, y, z = planes
+    words = 0
+    full = stop - max(stop - first, 0) % BLOCK  # the blocks of BLOCK whole springs end here
+    for q in range(first, full, BLOCK):
+        found[words] = over_word(planes, oa, ob, lim_s, q)
+        again[words] = 0
+        words += 1
+    for q in range(max(full, first), stop, BLOCK):  # the last few, if any
+        n = stop - q
+        xa, ya, za = x[oa + q:], y[oa + q:], z[oa + q:]
+        xb, yb, zb = x[ob + q:], y[ob + q:], z[ob + q:]
+        lim = lim_s[q:]
+        mask = np.uint64(0)  # an or of shifted selects vectorises
+        for p in range(n):
+            over = gap2(xa, ya, za, p, xb, yb, zb, p) > lim[p] * lim[p]
+            mask |= np.uint64(1 if over else 0) << np.uint64(p)
+        found[words] = mask
+        again[words] = 0
+        words += 1
+    return words
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
