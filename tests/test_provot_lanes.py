@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from clothsim.solver.provot import check_set
 from clothsim.solver.provot_lanes import over_word
-from clothsim.solver.shared import BLOCK
+from clothsim.solver.shared import BLOCK, KERNEL_OPTIONS, gap2
 
 from .test_solver import grid_model, reference_provot, run_provot, stencil
 
@@ -64,6 +65,55 @@ def test_each_spring_has_its_own_bit_and_a_spring_at_its_limit_is_not_over():
         bits = np.array([(int(word) >> j) & 1 for j in range(BLOCK)], dtype=bool)
         np.testing.assert_array_equal(bits, expected[at:at + BLOCK], err_msg=f"block from {at}")
     assert 0 < expected.sum() < count
+
+
+@njit(**KERNEL_OPTIONS)
+def loop_words(P, a, b, limit, first, stop, found):
+    """the check as numba's loop makes it (as the pass made every word before,
+    and still makes the last few springs'): an or of shifted selects"""
+    x, y, z = P[0], P[1], P[2]
+    words = 0
+    for q in range(first, stop, BLOCK):
+        xa, ya, za = x[a + q:], y[a + q:], z[a + q:]
+        xb, yb, zb = x[b + q:], y[b + q:], z[b + q:]
+        lim = limit[q:]
+        mask = np.uint64(0)
+        for p in range(min(BLOCK, stop - q)):
+            over = gap2(xa, ya, za, p, xb, yb, zb, p) > lim[p] * lim[p]
+            mask |= np.uint64(1 if over else 0) << np.uint64(p)
+        found[words] = mask
+        words += 1
+    return words
+
+
+@njit(cache=True)
+def set_words(P, a, b, limit, first, stop, found, again):
+    return check_set((P[0], P[1], P[2]), a, b, limit, first, stop, found, again)
+
+
+def test_springs_at_their_limit_to_the_last_bit_are_told_as_the_loop_tells_them():
+    """Limits a few units in the last place about each spring's length, so that
+    the test turns on how the squared length rounds: the vector check flags the
+    same springs as numba's loop, whose sums fuse their products one way (a
+    different fusion flagged a few in a hundred otherwise)."""
+    rng = np.random.default_rng(23)
+    n, a, b = 4099, 0, 53
+    P = rng.uniform(-1.0, 1.0, size=(3, n))
+    count = n - b
+    d = P[:, b:b + count] - P[:, a:a + count]
+    length = np.sqrt((d * d).sum(axis=0))
+    limit = length * (1.0 + rng.integers(-3, 4, size=count) * 2.0 ** -52)
+    for first, stop in ((0, count), (7, count - 5), (64, 64 + 10 * BLOCK)):
+        words = -(-(stop - first) // BLOCK)
+        expected = np.zeros(words, dtype=np.uint64)
+        got = np.zeros(words, dtype=np.uint64)
+        assert loop_words(P, a, b, limit, first, stop, expected) == words
+        again = np.ones(words, dtype=np.uint64)
+        assert set_words(P, a, b, limit, first, stop, got, again) == words
+        np.testing.assert_array_equal(got, expected)
+        assert not again.any()  # the pass's marks for the second batch start clear
+    flagged = sum(bin(int(w)).count("1") for w in expected)
+    assert 0.2 * 10 * BLOCK < flagged < 0.8 * 10 * BLOCK  # the limits fall on both sides
 
 
 def test_the_pass_cut_into_parts_mid_block_equals_the_sequential_pass():

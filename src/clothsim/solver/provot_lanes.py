@@ -6,15 +6,17 @@ Written as a numba loop, the word is an or of shifted selects, which LLVM
 vectorises as 64-bit lanes of ones shifted and or-ed together: more work
 than the test itself. Here each eight springs' comparison is already the
 eight bits of a byte (a mask register's with AVX-512, a ``movmskpd`` pair's
-without), shifted into place in the word. Same loads, same sums, same
-comparison: the same bits as the loop (docs/performance.md, 'Provot's check
-as bytes').
+without), shifted into place in the word. Same loads, the same squared
+lengths (x² rounded, y² and then z² each fused into the sum where the
+machine fuses), the same comparison: the same bits as the loop
+(docs/performance.md, 'Provot's check as bytes').
 """
 
 from __future__ import annotations
 
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
@@ -25,13 +27,6 @@ __all__ = ["over_word"]
 
 _EIGHT = 8
 """springs a comparison takes: eight doubles, one 512-bit vector or two 256-bit ones"""
-
-_SUMS = ("contract",)
-"""the squared length summed x² + y², then + z², each sum free to fuse with its
-product as numba's loop fuses them, but in that order: with fast-math's
-reassociation LLVM summed some eights otherwise, and a spring just at its
-limit (Provot's pass leaves it there) then came out over it where the loop
-had it under, or the other way"""
 
 
 @intrinsic
@@ -53,6 +48,8 @@ def over_word(typingctx, planes, a, b, limit, at):
         planes_t, a_t, b_t, limit_t, at_t = signature.args
         planes_v, a_v, b_v, limit_v, at_v = args
         lanes = Lanes(context, builder, _EIGHT)
+        fuse = cgutils.get_or_insert_function(builder.module, ir.FunctionType(lanes.vec, [lanes.vec] * 3),
+                                              f"llvm.fmuladd.v{_EIGHT}f64")
         plane_t = planes_t.dtype
         xyz = [builder.extract_value(planes_v, k) for k in range(3)]
         at = context.cast(builder, at_v, at_t, types.intp)
@@ -64,12 +61,17 @@ def over_word(typingctx, planes, a, b, limit, at):
             step = ir.Constant(word_t, k)
             ends_a = [lanes.load(plane_t, p, builder.add(first, step)) for p in xyz]
             ends_b = [lanes.load(plane_t, p, builder.add(second, step)) for p in xyz]
-            d = [builder.fsub(ends_b[c], ends_a[c], flags=_SUMS) for c in range(3)]
-            length2 = builder.fadd(builder.fadd(builder.fmul(d[0], d[0], flags=_SUMS),
-                                                builder.fmul(d[1], d[1], flags=_SUMS), flags=_SUMS),
-                                   builder.fmul(d[2], d[2], flags=_SUMS), flags=_SUMS)
+            d = [builder.fsub(ends_b[c], ends_a[c]) for c in range(3)]
+            # numba's loop: fmuladd(dz, dz, fmuladd(dy, dy, dx * dx)). Left to fuse plain
+            # sums itself, even without reassociation, LLVM fused x² into y² instead,
+            # and a spring just at its limit (Provot's pass leaves it there) came out
+            # over it in a few cases in a hundred where the loop had it under, or the
+            # other way. llvm.fmuladd is a plain multiply and add where nothing fuses
+            length2 = builder.fmul(d[0], d[0])
+            for c in (1, 2):
+                length2 = builder.call(fuse, [d[c], d[c], length2])
             lim = lanes.load(limit_t, limit_v, builder.add(at, step))
-            over = builder.fcmp_ordered(">", length2, builder.fmul(lim, lim, flags=_SUMS), flags=_SUMS)
+            over = builder.fcmp_ordered(">", length2, builder.fmul(lim, lim))
             byte = builder.zext(builder.bitcast(over, ir.IntType(_EIGHT)), word_t)
             word = builder.or_(word, builder.shl(byte, step))
         return word
