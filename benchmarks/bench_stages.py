@@ -163,7 +163,8 @@ WRAPPED = {parallel: [njit(parallel=parallel)(f) for f in (_springs, _provot, _s
 
 @njit(**KERNEL_OPTIONS)
 def provot_check(P, springs, masks):
-    """The Provot pass's first loop alone: a bit per spring over its limit, every set."""
+    """The Provot pass's check alone: a bit per spring over its limit, every set
+    (and, as in the pass, each word's marks for the second batch cleared)."""
     start, end, count, limit = springs.start, springs.end, springs.count, springs.limit
     for s in range(6):
         check_set((P[0], P[1], P[2]), start[s], end[s], limit[s], 0, count[s], masks[0], masks[1])
