@@ -31,7 +31,7 @@ def test_each_spring_has_its_own_bit_and_a_spring_at_its_limit_is_not_over():
     """Springs with ends a whole number of sixteenths apart (every sum exact, fused
     or not): one exactly at its limit is not flagged, one whose limit is a unit in
     the last place shorter is; each bit is its own spring's, for blocks starting
-    anywhere, the ends' planes at two offsets."""
+    anywhere."""
     rng = np.random.default_rng(7)
     n, a, b = 700, 3, 41
     count = n - b
@@ -104,12 +104,12 @@ def test_springs_at_their_limit_to_the_last_bit_are_told_as_the_loop_tells_them(
     length = np.sqrt((d * d).sum(axis=0))
     limit = length * (1.0 + rng.integers(-3, 4, size=count) * 2.0 ** -52)
     for first, stop in ((0, count), (7, count - 5), (64, 64 + 10 * BLOCK)):
-        words = -(-(stop - first) // BLOCK)
-        expected = np.zeros(words, dtype=np.uint64)
-        got = np.zeros(words, dtype=np.uint64)
-        assert loop_words(P, a, b, limit, first, stop, expected) == words
-        again = np.ones(words, dtype=np.uint64)
-        assert set_words(P, a, b, limit, first, stop, got, again) == words
+        blocks = -(-(stop - first) // BLOCK)
+        expected = np.zeros(blocks, dtype=np.uint64)
+        got = np.zeros(blocks, dtype=np.uint64)
+        assert loop_words(P, a, b, limit, first, stop, expected) == blocks
+        again = np.ones(blocks, dtype=np.uint64)
+        assert set_words(P, a, b, limit, first, stop, got, again) == blocks
         np.testing.assert_array_equal(got, expected)
         assert not again.any()  # the pass's marks for the second batch start clear
     flagged = sum(bin(int(w)).count("1") for w in expected)
