@@ -20,7 +20,7 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from .colliders.lanes import Lanes, check_rows
+from .colliders.lanes import Lanes, check_rows, planes_of
 from .shared import BLOCK
 
 __all__ = ["over_word"]
@@ -37,7 +37,7 @@ def over_word(typingctx, planes, a, b, limit, at):
     than ``limit[at + j]`` [m] (its squared length over the limit's square).
     Nothing is bounds-checked: the caller keeps ``at + BLOCK`` within
     ``limit`` and ``a + at + BLOCK``, ``b + at + BLOCK`` within the planes."""
-    arrays = tuple(planes) if isinstance(planes, types.UniTuple) and len(planes) == 3 else ()
+    arrays = planes_of(planes)
     if not arrays:
         raise TypingError("over_word takes three planes")
     check_rows("over_word", arrays + (limit,))

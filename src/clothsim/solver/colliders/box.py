@@ -209,9 +209,10 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
         return _turned_loop(planes, refs, fr, marked, box_, None, None)
     a = carry_of(row, COLUMNS)
     if _slides(a):
+        shift = (a[9], a[10], a[11])
         if aligned:
-            return _aligned_loop(planes, refs, fr, marked, box_, (a[9], a[10], a[11]))
-        return _turned_loop(planes, refs, fr, marked, box_, a, (a[9], a[10], a[11]))
+            return _aligned_loop(planes, refs, fr, marked, box_, shift)
+        return _turned_loop(planes, refs, fr, marked, box_, a, shift)
     return _turned_loop(planes, refs, fr, marked, box_, a, None)
 
 
