@@ -11,23 +11,22 @@ whole of it for an AVX2 CPU, in a cache folder of its own:
         NUMBA_CACHE_DIR=/tmp/avx2-kernels python benchmarks/bench_sim.py --against-soa
 
 The C yardstick is then best built for the same CPU (``-march=znver3``) by hand.
+The CPU's name picks how the springs take their inverse length
+(:func:`clothsim.solver.shared.divides`): ``znver3`` compiles the code of an
+AMD Zen core, which divides; an Intel core's name (``alderlake``) the code of
+an Intel core without AVX-512, which takes the single-precision estimate.
 """
 
 from __future__ import annotations
 
 import llvmlite.binding as llvm
 
-OFF = ("avx512", "amx", "avxvnni", "avx10")
-"""feature name parts that a machine without AVX-512 lacks"""
+from clothsim.vector_width import features_without_avx512
 
 
 def avx2_features() -> str:
     """The host's LLVM feature string with the AVX-512 family turned off."""
-    out = []
-    for feature in llvm.get_host_cpu_features().flatten().split(","):
-        name = feature[1:]
-        out.append(f"-{name}" if feature.startswith("+") and any(p in name for p in OFF) else feature)
-    return ",".join(out)
+    return features_without_avx512(llvm.get_host_cpu_features().flatten())
 
 
 if __name__ == "__main__":

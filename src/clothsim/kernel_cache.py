@@ -228,10 +228,9 @@ def _marker(variant: str) -> Path | None:
     import llvmlite.binding as llvm
     import numba
 
-    name = numba.config.CPU_NAME
-    if not name or name == "host":
-        name = llvm.get_host_cpu_name()
-    cpu = f"{name};{numba.config.CPU_FEATURES or llvm.get_host_cpu_features().flatten()}"
+    from .vector_width import target_cpu_name
+
+    cpu = f"{target_cpu_name()};{numba.config.CPU_FEATURES or llvm.get_host_cpu_features().flatten()}"
     return path / f"warm-{variant}-{hashlib.sha256(cpu.encode()).hexdigest()[:8]}"
 
 

@@ -49,6 +49,35 @@ def wide_features(host: str, environ=None) -> str | None:
     return ",".join(features + [NARROW_FEATURE if narrow else WIDE_FEATURE])
 
 
+WITHOUT_AVX512 = ("avx512", "amx", "avxvnni", "avx10")
+"""parts of the LLVM feature names that a machine without AVX-512 lacks"""
+
+
+def features_without_avx512(host: str) -> str:
+    """``host`` (an LLVM feature string, as llvmlite flattens it) with the AVX-512
+    family turned off: with ``NUMBA_CPU_FEATURES`` set to it, numba compiles
+    the code a machine without AVX-512 runs (``benchmarks/avx2_features.py``
+    prints it; the tests compile the other inverse length with it)."""
+    out = []
+    for feature in host.split(","):
+        name = feature[1:]
+        out.append(f"-{name}" if feature.startswith("+") and any(p in name for p in WITHOUT_AVX512) else feature)
+    return ",".join(out)
+
+
+def target_cpu_name() -> str:
+    """The name of the CPU model numba compiles for, as LLVM spells it
+    (``znver3``, ``alderlake``, ...): ``NUMBA_CPU_NAME`` where the user chose
+    one, else the host's."""
+    import llvmlite.binding as llvm
+    import numba
+
+    name = numba.config.CPU_NAME
+    if not name or name == "host":
+        name = llvm.get_host_cpu_name()
+    return name
+
+
 def widen() -> bool:
     """Set numba's compile features to the vector width :func:`wide_features` picks;
     whether numba now compiles 512-bit vectors. Call before the first kernel

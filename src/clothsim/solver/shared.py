@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 from numba.cpython.unsafe.numbers import trailing_zeros
 
+from ..vector_width import target_cpu_name
 from .simd import has_compress
 
 KERNEL_OPTIONS = dict(cache=True, fastmath=True, boundscheck=False, error_model="numpy")
@@ -30,19 +31,33 @@ BLOCK = 64
 def inv_length(l2):
     """1/sqrt(l2) to about 1e-13 relative: a single-precision estimate refined by
     one Newton step in double, which is cheaper than a double sqrt and divide
-    where vectors hold eight doubles (AVX-512; see :data:`DIVIDE`)."""
+    where vectors hold eight doubles (AVX-512) and on Intel's cores (see
+    :func:`divides`)."""
     y = np.float64(np.float32(1.0) / np.sqrt(np.float32(max(l2, 1e-30))))
     return y * (1.5 - 0.5 * l2 * y * y)
 
 
-DIVIDE = not has_compress()
-"""whether :func:`over_length` divides by a double square root (no AVX-512, or
-``CLOTHSIM_NO_AVX512`` set) rather than multiplying by :func:`inv_length`. On a
-Zen 3 core the estimate's conversions and two refining steps keep the
-multiply units busy, while the square root and the divide run in a unit of
-their own beside them: the spring force loop takes less time, and is exact
-to the last bit. With AVX-512 the estimate stays, as chosen there (figures:
-docs/performance.md, 'The inverse length as a square root and a divide')."""
+def divides(cpu_name: str, compress: bool) -> bool:
+    """Whether :func:`over_length` should divide by a double square root on a
+    CPU of LLVM's name ``cpu_name``, given whether the kernels use AVX-512
+    (``compress``, :func:`.simd.has_compress`), rather than multiply by
+    :func:`inv_length`'s estimate: only on AMD's Zen cores (``znver*``)
+    without AVX-512. There the square root and the divide run in a unit of
+    their own beside the two multiply units, which the estimate's
+    conversions and refining steps keep busy: the spring force loop was
+    faster dividing, and exact to the last bit. On an Intel core, with the
+    same code, the estimate's loop took a quarter less time than the
+    divide's; with AVX-512 a vector holds eight doubles and the divide unit
+    is no wider (figures: docs/performance.md, 'The inverse length as a
+    square root and a divide' and 'The estimate on Intel cores without
+    AVX-512')."""
+    return not compress and cpu_name.startswith("znver")
+
+
+DIVIDE = divides(target_cpu_name(), has_compress())
+"""whether :func:`over_length` divides (see :func:`divides`), for the CPU numba
+compiles for: numba's cache keys every entry on that CPU's name and
+features, so kernels of either kind never mix"""
 
 
 @njit(**KERNEL_OPTIONS, inline="always")

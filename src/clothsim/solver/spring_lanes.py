@@ -19,7 +19,8 @@ Two things differ, both for speed: the six ends the sets share are loaded
 once (:data:`END_KEYS`), and with AVX-512 the inverse length is the
 machine's estimate refined twice (:func:`_over_length`). The forces then
 differ from the loops' by up to 1e-13 of ``k |d|``, the loops' own error;
-without AVX-512 they are the same to the bit. ``tests/test_spring_lanes.py``
+without AVX-512 both divide on AMD's Zen cores, the same to the bit, and
+on other cores the loops take their single-precision estimate. ``tests/test_spring_lanes.py``
 holds the two to that. Every lane computes its own spring, so a spring's
 force does not depend on where a call starts: a thread's part gives the
 whole cloth's bits. The slots where a set has no spring (a row's wrap, or
@@ -62,7 +63,7 @@ than twice a set (36), and the step takes the point's own from them;
 RSQRT14 = has_compress()
 """whether the inverse length is AVX-512's estimate refined twice (see
 :func:`_over_length`): where numba compiles for AVX-512, unless
-``CLOTHSIM_NO_AVX512`` asks for the portable path, whose springs divide"""
+``CLOTHSIM_NO_AVX512`` asks for the portable path, where this code divides"""
 
 NEAR = tuple((1 if di < 0 else 0, max(di, 0) if dr == 0 else None) for dr, di in SET_STEP)
 """each set's ends as offsets back from a point to the springs that reach it
@@ -132,7 +133,11 @@ def _over_length(v, a, l2):
     root and divide of :func:`.shared.inv_length` that numba's loops use there
     wait on the divider, and are a hundred times less exact (1e-13).
     Elsewhere a double square root and divide, as :func:`.shared.over_length`
-    (:data:`.shared.DIVIDE`) computes it."""
+    computes it on AMD's Zen cores (:data:`.shared.DIVIDE`). numba's loops
+    take a single-precision estimate on other cores without AVX-512, good to
+    1e-13; the general path (:mod:`.pull_lanes`) promises its pulls to 1e-14,
+    so this code divides there, and the eights (which run only with AVX-512)
+    do so in the tests of that path."""
     b = v.builder
     tiny = v.constant(1e-30)
     l2c = b.select(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)
