@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 
 from .provot_lanes import over_word
-from .shared import BLOCK, KERNEL_OPTIONS, gap2, over_length, pop_lowest
+from .shared import BLOCK, KERNEL_OPTIONS, divided_by_length, gap2, pop_lowest
 
 MAX_STRETCH = 1.1
 """Provot: no spring longer than this times its rest length"""
@@ -116,7 +116,7 @@ def shorten(P, a, b, lim, wa, wb):
     dx = P[0, b] - P[0, a]
     dy = P[1, b] - P[1, a]
     dz = P[2, b] - P[2, a]
-    e = 1.0 - over_length(lim, dx * dx + dy * dy + dz * dz)
+    e = 1.0 - divided_by_length(lim, dx * dx + dy * dy + dz * dz)
     ea = e * wa
     eb = e * wb
     P[0, a] += ea * dx

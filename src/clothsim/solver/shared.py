@@ -61,7 +61,12 @@ features, so kernels of either kind never mix"""
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
-def _over_length_divide(a, l2):
+def divided_by_length(a, l2):
+    """a/sqrt(l2) for a squared length l2 [m²] by a double square root and a
+    divide, exact to the last bit; finite for l2 = 0. Provot's correction
+    takes it on every core: one spring at a time, in scalar code, the
+    estimate's longer chain of dependent steps cost more than the divide
+    (docs/performance.md, 'The estimate on Intel cores without AVX-512')."""
     return a / np.sqrt(max(l2, 1e-30))
 
 
@@ -70,10 +75,10 @@ def _over_length_estimate(a, l2):
     return a * inv_length(l2)
 
 
-over_length = _over_length_divide if DIVIDE else _over_length_estimate
+over_length = divided_by_length if DIVIDE else _over_length_estimate
 """``over_length(a, l2)``: a/sqrt(l2) for a squared length l2 [m²], one of the two
-ways :data:`DIVIDE` chooses between (a spring's pull, Provot's correction);
-finite for l2 = 0"""
+ways :data:`DIVIDE` chooses between, for the vector loops (a spring's pull,
+the wind's triangle normals); finite for l2 = 0"""
 
 
 @njit(cache=True, inline="always")
