@@ -27,7 +27,18 @@ import numpy as np
 from numba import njit, types
 from numba.extending import overload
 
-from .shared import KERNEL_OPTIONS, over_length
+from .shared import KERNEL_OPTIONS, divided_by_length, over_length
+from .simd import has_compress
+
+_inverse_length = over_length if has_compress() else divided_by_length
+"""a triangle normal's 1/|n| (``_inverse_length(1.0, |n|²)``): the kernels'
+estimate with AVX-512, else the divide on every core. The wind's loop
+divides and takes a square root besides, so without AVX-512 the divide unit
+is busy anyway and the estimate's multiplies cost more than they spare:
+on an Intel core the grid's wind took 15.5-16.2 µs a substep dividing
+against 18.1-18.4 with the estimate, and with AVX-512 13.1-13.6 with the
+estimate against 14.0-14.5 dividing (docs/performance.md, 'The estimate on
+Intel cores without AVX-512')"""
 
 AIR_DENSITY = 1200.0
 """[g/m³]: 1.2 kg/m³ in the simulation's mass unit (see the module)"""
@@ -101,7 +112,7 @@ def _corner_force(e1, e2, u, drag, lift, scale):
     nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
     n2 = nx * nx + ny * ny + nz * nz
     ok = n2 > 0.0
-    inv_n = over_length(1.0, n2)
+    inv_n = _inverse_length(1.0, n2)
     area = 0.5 * n2 * inv_n
     nx, ny, nz = nx * inv_n, ny * inv_n, nz * inv_n
     un = ux * nx + uy * ny + uz * nz
