@@ -77,8 +77,8 @@ def _over_length_estimate(a, l2):
 
 over_length = divided_by_length if DIVIDE else _over_length_estimate
 """``over_length(a, l2)``: a/sqrt(l2) for a squared length l2 [m²], one of the two
-ways :data:`DIVIDE` chooses between, for the vector loops (a spring's pull,
-the wind's triangle normals); finite for l2 = 0"""
+ways :data:`DIVIDE` chooses between, for the vector loops (a spring's pull;
+the wind's triangle normals where there is AVX-512); finite for l2 = 0"""
 
 
 @njit(cache=True, inline="always")
