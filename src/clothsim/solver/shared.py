@@ -45,9 +45,9 @@ def divides(cpu_name: str, compress: bool) -> bool:
     without AVX-512. There the square root and the divide run in a unit of
     their own beside the two multiply units, which the estimate's
     conversions and refining steps keep busy: the spring force loop was
-    faster dividing, and exact to the last bit. On an Intel core, with the
-    same code, the estimate's loop took a quarter less time than the
-    divide's; with AVX-512 a vector holds eight doubles and the divide unit
+    faster dividing, and the same to the bit on every such core. On an Intel
+    core, with the same code, the estimate's loop was the faster by about a
+    quarter; with AVX-512 a vector holds eight doubles and the divide unit
     is no wider (figures: docs/performance.md, 'The inverse length as a
     square root and a divide' and 'The estimate on Intel cores without
     AVX-512')."""
@@ -63,7 +63,8 @@ features, so kernels of either kind never mix"""
 @njit(**KERNEL_OPTIONS, inline="always")
 def divided_by_length(a, l2):
     """a/sqrt(l2) for a squared length l2 [m²] by a double square root and a
-    divide, exact to the last bit; finite for l2 = 0. Provot's correction
+    divide, each rounded once: the same bits on every machine; finite for
+    l2 = 0. Provot's correction
     takes it on every core: one spring at a time, in scalar code, the
     estimate's longer chain of dependent steps cost more than the divide
     (docs/performance.md, 'The estimate on Intel cores without AVX-512')."""

@@ -20,8 +20,8 @@ once (:data:`END_KEYS`), and with AVX-512 the inverse length is the
 machine's estimate refined twice (:func:`_over_length`). The forces then
 differ from the loops' by up to 1e-13 of ``k |d|``, the loops' own error;
 without AVX-512 both divide on AMD's Zen cores, the same to the bit, and
-on other cores the loops take their single-precision estimate. ``tests/test_spring_lanes.py``
-holds the two to that. Every lane computes its own spring, so a spring's
+on other cores the loops take their single-precision estimate.
+``tests/test_spring_lanes.py`` holds the two to that. Every lane computes its own spring, so a spring's
 force does not depend on where a call starts: a thread's part gives the
 whole cloth's bits. The slots where a set has no spring (a row's wrap, or
 a kind switched off) are stored as zeros, as the loops store them: each set
@@ -136,8 +136,8 @@ def _over_length(v, a, l2):
     computes it on AMD's Zen cores (:data:`.shared.DIVIDE`). numba's loops
     take a single-precision estimate on other cores without AVX-512, good to
     1e-13; the general path (:mod:`.pull_lanes`) promises its pulls to 1e-14,
-    so this code divides there, and the eights (which run only with AVX-512)
-    do so in the tests of that path."""
+    so this code divides there. The eights run only with AVX-512; the tests
+    of the portable path run them dividing."""
     b = v.builder
     tiny = v.constant(1e-30)
     l2c = b.select(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)

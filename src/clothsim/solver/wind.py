@@ -34,11 +34,9 @@ _inverse_length = over_length if has_compress() else divided_by_length
 """a triangle normal's 1/|n| (``_inverse_length(1.0, |n|²)``): the kernels'
 estimate with AVX-512, else the divide on every core. The wind's loop
 divides and takes a square root besides, so without AVX-512 the divide unit
-is busy anyway and the estimate's multiplies cost more than they spare:
-on an Intel core the grid's wind took 15.5-16.2 µs a substep dividing
-against 18.1-18.4 with the estimate, and with AVX-512 13.1-13.6 with the
-estimate against 14.0-14.5 dividing (docs/performance.md, 'The estimate on
-Intel cores without AVX-512')"""
+is busy anyway and the estimate's multiplies cost more than they spare; with
+AVX-512 the estimate was the faster (docs/performance.md, 'The estimate
+on Intel cores without AVX-512')"""
 
 AIR_DENSITY = 1200.0
 """[g/m³]: 1.2 kg/m³ in the simulation's mass unit (see the module)"""
