@@ -217,6 +217,22 @@ def _common(P, R, free, row, lo, marked, carry, friction, aligned):
 
 
 @njit(**KERNEL_OPTIONS, inline="always")
+def turns_about_y(m):
+    """whether the turn of the map or rotation ``m`` (its first nine numbers, row-major)
+    is about the y axis alone: its y row and column those of the identity, to
+    the bit (a box standing on the floor, turned and turning about the vertical)"""
+    return m[1] == 0.0 and m[3] == 0.0 and m[5] == 0.0 and m[7] == 0.0 and m[4] == 1.0
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
+def yaw_map(m):
+    """the YAW_MAP numbers of the map ``m`` of 12 (:func:`.motion_rows.carry_of`)
+    whose turn is about y (:func:`turns_about_y`): what
+    :meth:`.lanes.Lanes.affine` reads of it"""
+    return (m[0], m[2], m[6], m[8], m[9], m[10], m[11])
+
+
+@njit(**KERNEL_OPTIONS, inline="always")
 def _slides(a):
     """whether the carry ``a`` (:func:`.motion_rows.carry_of`) only slides: its turn
     is the identity, to the bit"""
@@ -323,18 +339,15 @@ def _turned_loop(planes, refs, fr, marked, box_, a, shift):
     reach_v = (-(hv + margin), hv + margin)
     reach_w = (-(hw + margin), hw + margin)
     thinnest2 = _thinnest2(box_)
-    count = 0
     n = marked.shape[0]
     width = STILL_LANES if a is None or shift is not None else TURNED_LANES
     full = n - n % width
     lanes_box = (0.0, 0.0, 0.0, hu, hv, hw) + reach_u + reach_v + reach_w + (keep, thinnest2)
-    for q in range(0, full, width):
-        if a is None:
-            count += still_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
-        elif shift is not None:
-            count += sliding_turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back, shift)
-        else:
-            count += turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
+    if turns_about_y(box_[3:12]) and (a is None or turns_about_y(a)):
+        maps = (yaw_map(ref), yaw_map(end), yaw_map(back))
+        count = _turned_runs(planes, refs, fr, marked, lanes_box, maps, a, shift, full, width)
+    else:
+        count = _turned_runs(planes, refs, fr, marked, lanes_box, (ref, end, back), a, shift, full, width)
     for p in range(full, n):
         u0, v0, w0 = carry_point(ref, rx[p], ry[p], rz[p])
         xp, yp, zp = x[p], y[p], z[p]
@@ -351,6 +364,25 @@ def _turned_loop(planes, refs, fr, marked, box_, a, shift):
         far = (du * du + dv * dv + dw * dw >= thinnest2) & free_
         count += _write_or_mark(planes, marked, p, inside, (out_u, out_v, out_w), far, carry_point(back, fu, fv, fw),
                                 (xp, yp, zp))
+    return count
+
+
+@njit(**KERNEL_OPTIONS)
+def _turned_runs(planes, refs, fr, marked, lanes_box, maps, a, shift, full, width):
+    """The runs of :func:`_turned_loop` over points ``0:full``, ``width`` at a
+    time, with the maps (ref, end, back) as it made them: each of 12 numbers,
+    or, where the box's axes and its carry's turn are turned about y alone,
+    of YAW_MAP (:func:`yaw_map`), which spares the lanes the zero terms. Returns
+    how many they marked."""
+    ref, end, back = maps
+    count = 0
+    for q in range(0, full, width):
+        if a is None:
+            count += still_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
+        elif shift is not None:
+            count += sliding_turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back, shift)
+        else:
+            count += turned_lanes(planes, refs, fr, marked, q, lanes_box, ref, end, back)
     return count
 
 

@@ -27,7 +27,7 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from ..simd import _vector_at, has_avx512f
-from .lanes import MAP, Lanes, check_numbers, check_rows, planes_of
+from .lanes import MAP, YAW_MAP, Lanes, check_numbers, check_rows, planes_of
 
 __all__ = ["ALIGNED_LANES", "STILL_LANES", "TURNED_LANES", "aligned_lanes", "sliding_lanes", "sliding_turned_lanes",
            "still_lanes", "turned_lanes"]
@@ -56,7 +56,8 @@ def _check(planes, refs, free, marked, box, maps=()):
     if not (isinstance(marked, types.Array) and marked.ndim == 1 and marked.layout == "C"
             and marked.dtype == types.boolean):
         raise TypingError("the box's lanes take a contiguous bool (N,) array of marks")
-    check_numbers("the box's lanes", ((box, _BOX),) + tuple((m, MAP) for m in maps))
+    size = len(maps[0]) if maps and isinstance(maps[0], types.UniTuple) and len(maps[0]) == YAW_MAP else MAP
+    check_numbers("the box's lanes", ((box, _BOX),) + tuple((m, size) for m in maps))
 
 
 def _place_lanes(lanes, ends, starts, load_free, old, box, back, store, moved=None):
