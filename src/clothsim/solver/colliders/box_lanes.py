@@ -67,7 +67,8 @@ def _place_lanes(lanes, ends, starts, load_free, old, box, back, store, moved=No
     reads whether each point is free (an i1 vector; read only behind the
     test, which a pinned point seldom passes), ``old`` the points as read (three
     vectors, the world's); ``back`` maps a placed point to the world (None: it
-    is there already); ``store(planes, marks)`` writes three vectors of
+    is there already; where there is one, ``box`` is in the box's own frame,
+    and its centre, 0, is not read); ``store(planes, marks)`` writes three vectors of
     positions (or None: leave them) and the marks (an i1 vector). ``moved``:
     where the references stay where they are, |point - reference|² in the
     world's frame (a turn keeps it), which the far test then takes, and
@@ -76,7 +77,13 @@ def _place_lanes(lanes, ends, starts, load_free, old, box, back, store, moved=No
     b = lanes.builder
     c, h, reach = box[0:3], box[3:6], box[6:12]
     keep, thinnest2 = box[12], box[13]
-    ends_in = [lanes.less(lanes.abs(lanes.sub(ends[k], c[k])), h[k]) for k in range(3)]
+
+    def off_centre(a, k):
+        """a - c[k]; a itself where the box is in its own frame (``back``), with
+        its centre at 0, which LLVM cannot know: x - 0.0 is x, bit for bit"""
+        return a if back is not None else lanes.sub(a, c[k])
+
+    ends_in = [lanes.less(lanes.abs(off_centre(ends[k], k)), h[k]) for k in range(3)]
     inside = b.and_(b.and_(ends_in[0], ends_in[1]), ends_in[2])
     if moved is None:
         moves = [lanes.sub(ends[k], starts[k]) for k in range(3)]
@@ -94,7 +101,7 @@ def _place_lanes(lanes, ends, starts, load_free, old, box, back, store, moved=No
             outs, new = [], []
             for k in range(3):
                 a0 = starts[k]
-                out = lanes.at_least(lanes.abs(lanes.sub(a0, c[k])), h[k])
+                out = lanes.at_least(lanes.abs(off_centre(a0, k)), h[k])
                 face = lanes.sub(lanes.clamp(a0, reach[2 * k], reach[2 * k + 1]), a0)
                 new.append(lanes.add(a0, lanes.mul(keep, lanes.pick(out, face, moves[k]))))
                 outs.append(out)
