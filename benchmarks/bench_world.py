@@ -2,9 +2,10 @@
 
 Each case is ``sphere.json`` (50x50, self-collision on, one thread) with its
 collider swapped: the still sphere of today; the same sphere spinning; a box
-(a table under the cloth); the same box turned 20° about y; the box
-sliding; the box sliding and turning; the sphere with a 5 m/s wind; no
-collider at all (what the rest of the substep costs). Cases run in
+(a table under the cloth); the same box turned 20° about y; the same box
+tilted about all three axes; the box sliding; the box sliding and turning;
+the sphere with a 5 m/s wind; no collider at all (what the rest of the
+substep costs). Cases run in
 interleaved rounds, alternating their order, one second of simulated time
 each from the same start; a line per case gives the best and median
 substeps/s and microseconds a substep, and how much more than the still
@@ -17,7 +18,9 @@ each on the cloth of its own case after 1.5 s (draped on the sphere, lying
 on the box) one substep's fall further, called on a fresh copy of it many
 times (the copy's own time taken off), best of the rounds: the still sphere,
 the spinning sphere (on the still one's cloth), the box, the turned box (on
-its own cloth), the box sliding, the box sliding and turning, the wind (its
+its own cloth), the box sliding, the box sliding and turning about y, the
+tilted box (on its own cloth), the box sliding and turning about x and y
+(its turns take the maps of twelve numbers, as the tilted box's do), the wind (its
 pass over the triangles: the grid path's stencils, and the general path's
 loop over a triangle list), per call of one substep; and the still sphere's
 kernel as it stood at `c978e85` (``sphere_then.py``), the sphere issue 21
@@ -47,7 +50,11 @@ SLOT = 3
 """the substep of a frame the kernels are timed at (``--kernels``)"""
 TURN = [0, 20, 0]
 """[degrees] the turned box's own rotation: its axes are not the world's, so its
-pass turns every point into its frame, as a moving box's does"""
+pass turns every point into its frame, as a moving box's does (about y alone,
+with the maps of a turn about y, :func:`clothsim.solver.colliders.box.yaw_map`)"""
+TILT = [8, 20, 5]
+"""[degrees] the tilted box's own rotation, about all three axes: its pass takes
+the maps of twelve numbers"""
 SLIDE_ONLY = {"keys": [{"t": 0}, {"t": 2, "translate": [0.2, 0, 0]}], "loop": True}
 SLIDE = {"keys": [{"t": 0}, {"t": 2, "translate": [0.2, 0, 0], "rotate": [0, 30, 0]}], "loop": True}
 
@@ -60,6 +67,7 @@ def cases(base: dict) -> dict[str, dict]:
     no_sphere = {k: v for k, v in base.items() if k != "sphere"}
     out["box"] = {**no_sphere, "box": box}
     out["turned box"] = {**no_sphere, "box": {**box, "rotate": TURN}}
+    out["tilted box"] = {**no_sphere, "box": {**box, "rotate": TILT}}
     out["sliding box"] = {**no_sphere, "box": {**box, "animation": SLIDE_ONLY}}
     out["moving box"] = {**no_sphere, "box": {**box, "animation": SLIDE}}
     out["sphere + wind"] = {**base, "wind": {"velocity": [5.0, 0.0, 0.0]}}
@@ -103,6 +111,7 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     on_sphere = _settled(scenes["sphere"])
     on_box = _settled(scenes["box"])
     on_turned = _settled(scenes["turned box"])
+    on_tilted = _settled(scenes["tilted box"])
     sim = on_sphere[3]
     dt, steps = sim.params.dt, sim.params.simulation_steps
     spin = Animation((Keyframe(0.0), Keyframe(4.0, rotate=(0.0, 360.0, 0.0))), loop=True)
@@ -117,12 +126,16 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     moving_box = type(b0)(b0.center, b0.size, b0.friction, animation=slide)
     sliding_box = type(b0)(b0.center, b0.size, b0.friction,
                            animation=Animation((Keyframe(start), Keyframe(start + 2.0, (0.2, 0.0, 0.0)))))
+    rocking = Animation((Keyframe(start), Keyframe(start + 2.0, (0.2, 0.0, 0.0), (5.0, 30.0, 0.0))))
+    rocking_box = type(b0)(b0.center, b0.size, b0.friction, animation=rocking)
     work = {"sphere": (sphere.collide_spheres, sphere.pack([s0], 1.5, dt, steps), on_sphere),
             "spinning sphere": (sphere.collide_spheres, sphere.pack([moving_sphere], 1.5, dt, steps), on_sphere),
             "box": (box.collide_boxes, box.pack([b0], 1.5, dt, steps), on_box),
             "turned box": (box.collide_boxes, box.pack([on_turned[3].boxes[0]], 1.5, dt, steps), on_turned),
             "sliding box": (box.collide_boxes, box.pack([sliding_box], 1.5, dt, steps), on_box),
             "moving box": (box.collide_boxes, box.pack([moving_box], 1.5, dt, steps), on_box),
+            "tilted box": (box.collide_boxes, box.pack([on_tilted[3].boxes[0]], 1.5, dt, steps), on_tilted),
+            "rocking box": (box.collide_boxes, box.pack([rocking_box], 1.5, dt, steps), on_box),
             "sphere at c978e85": (sphere_then.collide_spheres, sphere_then.pack([s0]), on_sphere)}
     wind = pack_wind(WindSpec((5.0, 0.0, 0.0)), 1.5, dt)
     knobs = sim.solver.knobs(sim.params)

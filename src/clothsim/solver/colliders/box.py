@@ -367,13 +367,15 @@ def _turned_loop(planes, refs, fr, marked, box_, a, shift):
     return count
 
 
-@njit(**KERNEL_OPTIONS)
+@njit(**KERNEL_OPTIONS, inline="always")
 def _turned_runs(planes, refs, fr, marked, lanes_box, maps, a, shift, full, width):
     """The runs of :func:`_turned_loop` over points ``0:full``, ``width`` at a
     time, with the maps (ref, end, back) as it made them: each of 12 numbers,
     or, where the box's axes and its carry's turn are turned about y alone,
     of YAW_MAP (:func:`yaw_map`), which spares the lanes the zero terms. Returns
-    how many they marked."""
+    how many they marked. numba inlines it into :func:`_turned_loop`, where the
+    loop stood before, so that it compiles with its caller whatever the
+    cache already holds."""
     ref, end, back = maps
     count = 0
     for q in range(0, full, width):
