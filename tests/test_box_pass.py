@@ -237,10 +237,11 @@ def test_points_by_a_turned_box_that_moved_about_its_thinnest_side_are_marked_as
 
 @njit(cache=True)
 def _runs_both_ways(P, R, free, row, a, shift, width):
-    """(marks, count) of the turned box's runs over P (3, n), n a multiple of
-    ``width``, from references R, once with the maps of 12 numbers and once
-    with those of a turn about y; P is left as the second placed it, and a
-    copy of what the first placed is returned"""
+    """The turned box's runs over P (3, n), n a multiple of ``width``, from
+    references R, once with the maps of 12 numbers (on a copy of P) and once
+    with those of a turn about y (on P itself). Returns (the copy as the
+    first placed it, its marks, their count, the second's marks, their
+    count)"""
     n = P.shape[1]
     box_ = (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10], row[11],
             row[12], row[13], row[14], 1.0 - row[15], row[16])
