@@ -1,16 +1,18 @@
-"""The springs' eights (:mod:`clothsim.solver.spring_lanes`) against numba's loops.
+"""The springs' lanes (:mod:`clothsim.solver.spring_lanes`) against numba's loops.
 
-Where numba compiles for AVX-512 (``springs.EIGHTS``), :func:`integrate` moves every
-point but those of the last rows through the LLVM vector code of the eights;
-:func:`integrate_chunks` is the loops it replaced, which take the whole
-cloth elsewhere. The eights are checked on every machine. Both must give the
-same positions, last positions and force buffer on any grid (rows shorter
-than eight points and longer), any spring constants (kinds switched off
-among them), pins, and the ranges a thread's part takes: the same to the
-bit where both divide by the length's square root (without AVX-512, on an
-AMD Zen core: ``shared.DIVIDE``), and within the loops' own error where one
-of them takes an estimate (the eights AVX-512's, ``RSQRT14``, which is
-checked against the exact forces; the loops a single-precision one).
+:func:`integrate` moves every point but those of the last rows through the
+LLVM vector code of the lanes, eight points a call with AVX-512 and four
+without; :func:`integrate_chunks` is the loops it replaced, which take the
+last rows. Both must give the same positions, last positions and force
+buffer on any grid (rows shorter than a call and longer), any spring
+constants (kinds switched off among them), pins, and the ranges a thread's
+part takes: the same to the bit where both divide by the length's square
+root (without AVX-512, on an AMD Zen core: ``shared.DIVIDE``), and within
+the loops' own error where one of them takes an estimate (the lanes
+AVX-512's, ``RSQRT14``, which is checked against the exact forces; the
+loops a single-precision one). A test process compiles for one kind of
+CPU; ``test_inverse_length.py`` runs these tests again compiled for the
+other.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ def _state(nw, nh, seed, pins=()):
 
 
 def _eights(P, L, free, knobs, springs, F, first, stop, moved):
-    """integrate as it runs where EIGHTS: the eights, then the loops for the rest"""
+    """integrate as it runs: the lanes, then the loops for the rest"""
     done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
     integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
 
@@ -121,7 +123,8 @@ def test_the_eights_leave_a_range_or_buffer_they_cannot_read_inside_to_the_loops
     springs = stencil(m)
     k = knobs(np.full(6, 3000.0), (0.0, -9.8, 0.0), 0.998, 1e-5)
     free, F = np.ones(400), force_buffer(springs, 400)
-    for first, moved in ((4, 4), (8, 12), (-8, 0)):
+    half = LANES // 2
+    for first, moved in ((half, half), (LANES, LANES + half), (-LANES, 0)):
         assert integrate_eights(P.copy(), L.copy(), free, k, springs, F, first, 400, moved) == first
     short = np.zeros((6, 3, 400 + 4))  # a pad of four slots
     assert integrate_eights(P.copy(), L.copy(), free, k, springs, short, 0, 400, 0) == 0

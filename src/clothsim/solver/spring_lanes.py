@@ -1,16 +1,18 @@
-"""The springs and the Verlet step eight points at a time, in one pass (see :mod:`.springs`).
+"""The springs and the Verlet step a few points at a time, in one pass (see :mod:`.springs`).
 
 numba's loops (:func:`.springs.integrate_chunks`) compute every set's spring
 forces for a chunk of 512 points into the force buffer, then gather each
 point's twelve and move it: nine loops a chunk, the gathering reading the
-buffer back from the L2 cache. Here a numba loop walks the cloth eight
-points at a time and calls LLVM vector code that computes the six sets'
-forces of the springs that start at the eight, stores them, and steps the
-eight at once (:func:`spring_step_lanes`). A point's forces come from its
-own springs, still in registers; from the springs one and two points back
-along its row, shifted across from the eight before; and from the rows
-above, stored a row or two ago and still in the L1 cache. The new
-positions go over the last ones (see :func:`.springs.integrate`).
+buffer back from the L2 cache. Here a numba loop walks the cloth LANES
+points at a time (eight with AVX-512, four without) and calls LLVM vector
+code that computes the six sets' forces of the springs that start at those
+points, stores them, and steps the points at once
+(:func:`spring_step_lanes`). A point's forces come from its own springs,
+still in registers; from the springs one and two points back along its
+row, shifted across from the call before; and from the rows above, stored
+a row or two ago and still in the L1 cache. The new positions go over the
+last ones (see :func:`.springs.integrate`). The functions keep the names
+of the eights, which they were written as.
 
 The arithmetic is :func:`.springs.spring_forces`' and
 :func:`.springs.verlet_gather`'s with numba's fast-math flags, the gathered
@@ -18,14 +20,15 @@ sums and the step's multiply-adds in the order LLVM gives numba's loops.
 Two things differ, both for speed: the six ends the sets share are loaded
 once (:data:`END_KEYS`), and with AVX-512 the inverse length is the
 machine's estimate refined twice (:func:`_over_length`). The forces then
-differ from the loops' by up to 1e-13 of ``k |d|``, the loops' own error;
-without AVX-512 both divide on AMD's Zen cores, the same to the bit, and
-on other cores the loops take their single-precision estimate.
-``tests/test_spring_lanes.py`` holds the two to that. Every lane computes its own spring, so a spring's
+differ from the loops' by up to 1e-13 of ``k |d|``, the loops' own error.
+Without AVX-512 this code divides: on AMD's Zen cores the loops divide
+too, the same to the bit; on other cores the loops take their
+single-precision estimate. ``tests/test_spring_lanes.py`` holds the two to
+that. Every lane computes its own spring, so a spring's
 force does not depend on where a call starts: a thread's part gives the
 whole cloth's bits. The slots where a set has no spring (a row's wrap, or
 a kind switched off) are stored as zeros, as the loops store them: each set
-takes a byte whose bits pick the lanes to zero
+takes a byte of bits for each eight points, which pick the lanes to zero
 (:attr:`.springs.GridSprings.gaps`).
 """
 
@@ -38,14 +41,25 @@ from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
-from .colliders.lanes import FAST, LANES, Lanes
+from .colliders.lanes import FAST, Lanes
 from .shared import KERNEL_OPTIONS, SET_STEP
-from .simd import _vector_at, has_compress
+from .simd import _vector_at, has_avx512f, has_compress
 
 __all__ = ["LANES", "force_lanes", "integrate_eights", "spring_step_lanes"]
 
 SETS = len(SET_STEP)
 """spring sets of a grid cloth"""
+
+LANES = 8 if has_avx512f() else 4
+"""points a call takes: eight, a 512-bit vector of doubles, where numba
+compiles for AVX-512, whose 32 vector registers hold an eight's forces;
+four, a 256-bit vector, without it. Eight points in pairs of AVX2's 16
+registers spilled, and ran slower than numba's loops; four held in them ran
+faster (docs/performance.md, 'The springs four points at a time without
+AVX-512')"""
+
+GAP_BITS = 8
+"""points a byte of :attr:`.springs.GridSprings.gaps` covers, whatever LANES is"""
 
 IN_ORDER = ("nnan", "ninf", "nsz", "arcp", "contract", "afn")
 """numba's fast-math flags without ``reassoc``, for the gathered sums, written
@@ -56,7 +70,7 @@ vectors, not loads), and the sums round differently"""
 END_KEYS = tuple(((0, 1 if di < 0 else 0), (dr, max(di, 0))) for dr, di in SET_STEP)
 """each set's two ends as (rows, points) along from a spring's start point
 ``p`` (the ``start`` and ``end`` of :func:`.springs.build_stencil`): the sets
-share six ends, so an eight loads each of those once (18 vectors) rather
+share six ends, so a call loads each of those once (18 vectors) rather
 than twice a set (36), and the step takes the point's own from them;
 :func:`integrate_eights` leaves any other stencil to the loops"""
 
@@ -68,8 +82,8 @@ RSQRT14 = has_compress()
 NEAR = tuple((1 if di < 0 else 0, max(di, 0) if dr == 0 else None) for dr, di in SET_STEP)
 """each set's ends as offsets back from a point to the springs that reach it
 (``start``, ``end`` of :class:`.springs.GridSprings`) where they do not
-depend on the row's length: the step takes those forces from the eight just
-computed and the eight before, shifted across, not from the buffer"""
+depend on the row's length: the step takes those forces from the lanes just
+computed and the call's before, shifted across, not from the buffer"""
 
 
 def _is_array(t, ndim):
@@ -103,12 +117,12 @@ class _Vector(Lanes):
     besides: pointers into arrays of more dimensions, constants in every
     lane, and LLVM's other vector intrinsics by name."""
 
-    def __init__(self, context, builder):
-        super().__init__(context, builder)
+    def __init__(self, context, builder, width=8):
+        super().__init__(context, builder, width)
         self.intp = context.get_value_type(types.intp)
 
     def constant(self, x):
-        return ir.Constant(self.vec, [x] * LANES)
+        return ir.Constant(self.vec, [x] * self.width)
 
     def at(self, array_type, array, *index):
         """the vector's pointer at ``array[index]``, ints or intp values"""
@@ -122,7 +136,7 @@ class _Vector(Lanes):
         """``llvm.name`` on vectors of doubles, with numba's fast-math flags
         (without ``reassoc`` for ``fmuladd``)"""
         fn = cgutils.get_or_insert_function(self.builder.module, ir.FunctionType(self.vec, [self.vec] * len(args)),
-                                            f"llvm.{name}.v{LANES}f64")
+                                            f"llvm.{name}.v{self.width}f64")
         return self.builder.call(fn, args, fastmath=FAST if name != "fmuladd" else IN_ORDER)
 
 
@@ -136,8 +150,11 @@ def _over_length(v, a, l2):
     computes it on AMD's Zen cores (:data:`.shared.DIVIDE`). numba's loops
     take a single-precision estimate on other cores without AVX-512, good to
     1e-13; the general path (:mod:`.pull_lanes`) promises its pulls to 1e-14,
-    so this code divides there. The eights run only with AVX-512; the tests
-    of the portable path run them dividing."""
+    so this code divides there. The springs' four lanes divide there too:
+    with the loops' estimate (converted to single precision and back, refined
+    in double) they ran slower on an Intel core than dividing, and the
+    loops, which they replace, no faster (docs/performance.md, 'The springs
+    four points at a time without AVX-512')."""
     b = v.builder
     tiny = v.constant(1e-30)
     l2c = b.select(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)
@@ -159,7 +176,7 @@ class _Pass:
     def __init__(self, context, b, types_, values):
         P_t, rest_t, gaps_t, F_t, at_t, pad_t, ends_t, k_t, off_t = types_[:9]
         P_v, rest_v, gaps_v, F_v, at_v, pad_v, ends_v, k_v, off_v = values[:9]
-        self.v = v = _Vector(context, b)
+        self.v = v = _Vector(context, b, LANES)
         self.b = b
         self.P, self.rest, self.F = (P_t, P_v), (rest_t, rest_v), (F_t, F_v)
         self.at = context.cast(b, at_v, at_t, types.intp)
@@ -169,7 +186,10 @@ class _Pass:
         self.ks = [v.splat(k) for k in cgutils.unpack_tuple(b, k_v, SETS)]
         self.loaded = {}
         gaps = context.make_array(gaps_t)(context, b, gaps_v)
-        eight = b.ashr(self.at, ir.Constant(v.intp, 3))  # the call's byte of gaps
+        eight = b.ashr(self.at, ir.Constant(v.intp, 3))  # the byte of gaps that holds the call's bits
+        # where a call takes fewer than GAP_BITS points, its bits lie (at % GAP_BITS) up the byte
+        self.gap_shift = (b.trunc(b.and_(self.at, ir.Constant(v.intp, GAP_BITS - 1)), ir.IntType(8))
+                          if LANES < GAP_BITS else None)
         self.gap_at = lambda s: cgutils.get_item_pointer(context, b, gaps_t, gaps, [ir.Constant(v.intp, s), eight],
                                                          wraparound=False)
 
@@ -179,7 +199,10 @@ class _Pass:
         d = [v.sub(self.end(s, 1, c), self.end(s, 0, c)) for c in range(3)]
         l2 = v.add(v.add(v.mul(d[0], d[0]), v.mul(d[1], d[1])), v.mul(d[2], d[2]))
         f = v.sub(self.ks[s], _over_length(v, v.mul(self.ks[s], v.load(*self.rest, s, self.at)), l2))
-        gap = b.bitcast(b.or_(b.load(self.gap_at(s)), b.trunc(self.offs[s], ir.IntType(LANES))), v.bits)
+        byte = b.load(self.gap_at(s))
+        if LANES < GAP_BITS:
+            byte = b.trunc(b.lshr(byte, self.gap_shift), ir.IntType(LANES))
+        gap = b.bitcast(b.or_(byte, b.trunc(self.offs[s], ir.IntType(LANES))), v.bits)
         out = []
         for c in range(3):
             value = b.select(gap, ir.Constant(v.vec, None), v.mul(f, d[c]))
@@ -290,8 +313,8 @@ def _off(k):
 
 @njit(**KERNEL_OPTIONS)
 def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
-    """:func:`.springs.integrate` eight points at a time, from ``first`` for as
-    long as eight more points lie before ``stop`` and every spring of them
+    """:func:`.springs.integrate` LANES points at a time, from ``first`` for as
+    long as LANES more points lie before ``stop`` and every spring of them
     has both ends inside the cloth. Returns the point where it stopped: the
     caller's loops take the rest. The points before ``moved`` get their
     forces and no step. Where ``first`` or ``moved - first`` is not a
@@ -307,7 +330,7 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
         reach = max(reach, start[s], end[s])
     last = min(stop, n - reach)
     if first < 0 or first % LANES != 0 or (moved - first) % LANES != 0 or pad < max(reach + 1, LANES) \
-            or rest.shape[1] < n or free.shape[0] < n or L.shape[1] < n or gaps.shape[1] * LANES < n:
+            or rest.shape[1] < n or free.shape[0] < n or L.shape[1] < n or gaps.shape[1] * GAP_BITS < n:
         return first  # not a range or buffer the calls can read inside: the loops take it all
     ends = (start[0], start[1], start[2], start[3], start[4], start[5],
             end[0], end[1], end[2], end[3], end[4], end[5])

@@ -33,7 +33,6 @@ from numba import njit
 from ..model import BENDING, SHEARING, STRUCTURAL
 from .provot import MAX_STRETCH
 from .shared import KERNEL_OPTIONS, SET_STEP, over_length
-from .simd import has_avx512f
 from .spring_lanes import LANES, integrate_eights
 
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
@@ -44,14 +43,8 @@ CHUNK = 512
 
 AHEAD_STEP = 8
 """``ahead`` is rounded up to this many points, a vector of doubles at 512
-bits: a part's force pass then starts on a whole eight (:mod:`.spring_lanes`)"""
-
-EIGHTS = has_avx512f()
-"""whether :func:`integrate` takes the cloth eight points at a time
-(:mod:`.spring_lanes`): where numba compiles for AVX-512, whose 32 vector
-registers hold an eight's forces. With AVX2's 16 the eights' code spilled,
-and the loops ran faster (docs/performance.md, 'The springs eight points at
-a time')"""
+bits (two at 256): a part's force pass then starts on a whole call of
+:mod:`.spring_lanes`"""
 
 NO_LIMIT = 1e30
 """the Provot limit where a set has no spring: never reached"""
@@ -168,8 +161,8 @@ def wrap_columns(valid: np.ndarray, count: np.ndarray, cols: int) -> np.ndarray:
 def force_buffer(stencil: GridSprings, num_points: int) -> np.ndarray:
     """Scratch for :func:`integrate`: each set's spring forces, zero-padded in
     front so that ``F[s, c, pad + p]`` is spring p and every index a point
-    reads stays inside, (6, 3, pad + N); the pad holds at least the eight
-    slots the eights read before their first (:mod:`.spring_lanes`)."""
+    reads stays inside, (6, 3, pad + N); the pad holds at least the LANES
+    slots the lanes read before their first (:mod:`.spring_lanes`)."""
     return np.zeros((6, 3, max(int(stencil.end.max()) + 1, LANES) + num_points))
 
 
@@ -201,11 +194,12 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     Spring forces go to the (6, 3, pad + N) buffer ``F`` first, then each
     point gathers its twelve: ``a[q] = g + sum_s F_s[q - start_s] - F_s[q - end_s]``.
     That reads each force twice but writes each acceleration once, instead
-    of adding into both ends of every spring. Where EIGHTS, the cloth is
-    walked eight points at a time (:mod:`.spring_lanes`), the forces of an
-    eight's springs and then its step; elsewhere, and for the last rows,
-    whose springs would reach past the end, in chunks of CHUNK points
-    (:func:`integrate_chunks`), with the same sums in the same order. A spring's ends are both at its
+    of adding into both ends of every spring. The cloth is walked
+    :data:`.spring_lanes.LANES` points at a time (:mod:`.spring_lanes`: eight
+    with AVX-512, four without), the forces of their springs and then their
+    step; the last rows, whose springs would reach past the end, in chunks
+    of CHUNK points (:func:`integrate_chunks`), with the same sums in the
+    same order. A spring's ends are both at its
     start ``p`` or later, so a point's step can be taken as soon as its own
     springs' forces are in.
     """
@@ -215,7 +209,7 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     if not has_springs(k_over_m):
         verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, False)
         return
-    done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved) if EIGHTS else first
+    done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
     integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
 
 
