@@ -35,6 +35,11 @@ def machine() -> dict:
     except ImportError:  # a tree from before it: the eights took the loops' inverse
         RSQRT14 = False
     inverse = "divide" if DIVIDE else "estimate"
+    try:
+        from clothsim.solver.springs import BY_LANES
+        from clothsim.solver.spring_lanes import LANES
+    except ImportError:  # a tree from before them: eight points a call with AVX-512, else the loops
+        BY_LANES, LANES = has_compress(), 8
 
     # the CPU's name does not say which code the kernels were compiled to: two
     # "AMD EPYC" machines here differ in AVX-512, and the springs in how they
@@ -42,9 +47,12 @@ def machine() -> dict:
     # made the loops (clothsim.vector_width; 256 also on a CPU without AVX-512,
     # whose widest vectors those are); the grid's eights, where they run, and
     # the general path's pulls take AVX-512's estimate refined twice, the loops
-    # the divide or the estimate
+    # the divide or the estimate; grid_springs: how the grid's springs walk the
+    # cloth (spring_lanes' calls of so many points, or numba's loops)
     return {"cpu": cpu, "avx512_code": has_compress(), "vector_bits": 512 if widen() else 256,
-            "inverse_length": f"{inverse}, eights rsqrt14" if RSQRT14 else inverse,
+            "inverse_length": (f"{inverse}, eights rsqrt14" if RSQRT14 else
+                               f"{inverse}, lanes divide" if BY_LANES and not DIVIDE else inverse),
+            "grid_springs": f"{LANES} points a call" if BY_LANES else "loops",
             "python": platform.python_version(), "numpy": numpy.__version__,
             "numba": numba.__version__, "clothsim": clothsim.__version__}
 

@@ -1,9 +1,10 @@
 """The springs' lanes (:mod:`clothsim.solver.spring_lanes`) against numba's loops.
 
-:func:`integrate` moves every point but those of the last rows through the
-LLVM vector code of the lanes, eight points a call with AVX-512 and four
-without; :func:`integrate_chunks` is the loops it replaced, which take the
-last rows. Both must give the same positions, last positions and force
+Where ``springs.BY_LANES``, :func:`integrate` moves every point but those
+of the last rows through the LLVM vector code of the lanes, eight points a
+call with AVX-512 and four without; :func:`integrate_chunks` is the loops
+it replaced, which take the last rows, and the whole cloth on AMD's Zen
+cores without AVX-512. The lanes are checked on every machine. Both must give the same positions, last positions and force
 buffer on any grid (rows shorter than a call and longer), any spring
 constants (kinds switched off among them), pins, and the ranges a thread's
 part takes: the same to the bit where both divide by the length's square
@@ -38,7 +39,7 @@ def _state(nw, nh, seed, pins=()):
 
 
 def _eights(P, L, free, knobs, springs, F, first, stop, moved):
-    """integrate as it runs: the lanes, then the loops for the rest"""
+    """integrate as it runs where BY_LANES: the lanes, then the loops for the rest"""
     done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
     integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
 

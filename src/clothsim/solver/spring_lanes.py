@@ -54,9 +54,10 @@ LANES = 8 if has_avx512f() else 4
 """points a call takes: eight, a 512-bit vector of doubles, where numba
 compiles for AVX-512, whose 32 vector registers hold an eight's forces;
 four, a 256-bit vector, without it. Eight points in pairs of AVX2's 16
-registers spilled, and ran slower than numba's loops; four held in them ran
-faster (docs/performance.md, 'The springs four points at a time without
-AVX-512')"""
+registers spilled, and ran slower than numba's loops; four ran faster on an
+Intel core, and slower on a Zen 4 core, whose springs keep the loops
+(:data:`.springs.BY_LANES`; docs/performance.md, 'The springs four points
+at a time without AVX-512')"""
 
 GAP_BITS = 8
 """points a byte of :attr:`.springs.GridSprings.gaps` covers, whatever LANES is"""

@@ -32,7 +32,8 @@ from numba import njit
 
 from ..model import BENDING, SHEARING, STRUCTURAL
 from .provot import MAX_STRETCH
-from .shared import KERNEL_OPTIONS, SET_STEP, over_length
+from .shared import DIVIDE, KERNEL_OPTIONS, SET_STEP, over_length
+from .simd import has_avx512f
 from .spring_lanes import LANES, integrate_eights
 
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
@@ -45,6 +46,14 @@ AHEAD_STEP = 8
 """``ahead`` is rounded up to this many points, a vector of doubles at 512
 bits (two at 256): a part's force pass then starts on a whole call of
 :mod:`.spring_lanes`"""
+
+BY_LANES = has_avx512f() or not DIVIDE
+"""whether :func:`integrate` walks the cloth in calls of :mod:`.spring_lanes`
+(eight points with AVX-512, four without) rather than numba's loops: not
+on AMD's Zen cores without AVX-512 (:data:`.shared.DIVIDE`), where four at a
+time ran slower than the loops on a Zen 4 core with its AVX2 code, and faster
+on an Intel core (docs/performance.md, 'The springs four points at a time
+without AVX-512')"""
 
 NO_LIMIT = 1e30
 """the Provot limit where a set has no spring: never reached"""
@@ -194,12 +203,12 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     Spring forces go to the (6, 3, pad + N) buffer ``F`` first, then each
     point gathers its twelve: ``a[q] = g + sum_s F_s[q - start_s] - F_s[q - end_s]``.
     That reads each force twice but writes each acceleration once, instead
-    of adding into both ends of every spring. The cloth is walked
-    :data:`.spring_lanes.LANES` points at a time (:mod:`.spring_lanes`: eight
-    with AVX-512, four without), the forces of their springs and then their
-    step; the last rows, whose springs would reach past the end, in chunks
-    of CHUNK points (:func:`integrate_chunks`), with the same sums in the
-    same order. A spring's ends are both at its
+    of adding into both ends of every spring. Where BY_LANES, the cloth is
+    walked :data:`.spring_lanes.LANES` points at a time
+    (:mod:`.spring_lanes`: eight with AVX-512, four without), the forces of
+    their springs and then their step; elsewhere, and for the last rows,
+    whose springs would reach past the end, in chunks of CHUNK points
+    (:func:`integrate_chunks`), with the same sums in the same order. A spring's ends are both at its
     start ``p`` or later, so a point's step can be taken as soon as its own
     springs' forces are in.
     """
@@ -209,7 +218,7 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     if not has_springs(k_over_m):
         verlet_gather(P, L, free, knobs, springs, F, max(first, moved), stop, False)
         return
-    done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved)
+    done = integrate_eights(P, L, free, knobs, springs, F, first, stop, moved) if BY_LANES else first
     integrate_chunks(P, L, free, knobs, springs, F, done, stop, moved)
 
 
