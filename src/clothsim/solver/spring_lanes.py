@@ -152,10 +152,10 @@ def _over_length(v, a, l2):
     take a single-precision estimate on other cores without AVX-512, good to
     1e-13; the general path (:mod:`.pull_lanes`) promises its pulls to 1e-14,
     so this code divides there. The springs' four lanes divide there too:
-    with the loops' estimate (converted to single precision and back, refined
-    in double) they ran slower on an Intel core than dividing, and the
-    loops, which they replace, no faster (docs/performance.md, 'The springs
-    four points at a time without AVX-512')."""
+    given a single-precision estimate (the lengths rounded to single
+    precision and back, the estimate refined in double) they ran slower
+    than dividing on an Intel core (docs/performance.md, 'The springs four
+    points at a time without AVX-512')."""
     b = v.builder
     tiny = v.constant(1e-30)
     l2c = b.select(b.fcmp_ordered("<", l2, tiny, flags=FAST), tiny, l2)
