@@ -8,15 +8,17 @@
  * springs' vector code is held against (docs/performance.md, "The eights with
  * AVX-512 on this core, against its bound").
  *
- * build: cc -O2 -march=native -o fma_rate fma_rate.c   (AVX-512 for the 512-bit line;
- *        without it, -mavx2 -mfma -DNO_512 times the 256-bit chains alone)
- * prints one JSON object: {"ns_per_fma_512": t, "ns_per_fma_256": t, "ns_per_dependent_fma": t}
+ * build: cc -O2 -march=native -o fma_rate fma_rate.c   (on a CPU without AVX-512 it
+ *        times the 256-bit chains alone, and prints -1 for the 512-bit ones)
+ * usage: fma_rate [steps]   (default 20000000 a chain and round, five rounds, the best kept)
+ * prints one JSON object: {"ns_per_fma_512": t, "ns_per_fma_256": t, "ns_per_dependent_fma": t, ...};
+ * a steps count that is not a positive number gets one line on stderr and exit status 2
  */
 #include <immintrin.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <time.h>
 
-#define STEPS 20000000L
 #define ROUNDS 5
 
 static double now(void)
@@ -31,8 +33,17 @@ static double now(void)
     c[4] = OP(c[4], a, b); c[5] = OP(c[5], a, b); c[6] = OP(c[6], a, b); c[7] = OP(c[7], a, b); \
     c[8] = OP(c[8], a, b); c[9] = OP(c[9], a, b); c[10] = OP(c[10], a, b); c[11] = OP(c[11], a, b)
 
-int main(void)
+int main(int argc, char **argv)
 {
+    long STEPS = 20000000L;
+    if (argc > 1) {
+        char *end;
+        STEPS = strtol(argv[1], &end, 10);
+        if (*argv[1] == '\0' || *end != '\0' || STEPS <= 0) {
+            fprintf(stderr, "fma_rate: steps must be a positive whole number, not '%s'\n", argv[1]);
+            return 2;
+        }
+    }
     volatile double seed = 0.1; /* distinct starts the compiler cannot fold together */
     double sink = 0.0, best, t;
     __m256d a4 = _mm256_set1_pd(1.0000001), b4 = _mm256_set1_pd(0.9999999), c4[12], one4;
@@ -57,7 +68,7 @@ int main(void)
     for (int k = 0; k < 12; k++) sink += _mm256_cvtsd_f64(c4[k]);
     sink += _mm256_cvtsd_f64(one4);
     double per512 = -1.0;
-#ifndef NO_512
+#ifdef __AVX512F__
     __m512d a8 = _mm512_set1_pd(1.0000001), b8 = _mm512_set1_pd(0.9999999), c8[12];
     for (int k = 0; k < 12; k++) c8[k] = _mm512_set1_pd(seed + k);
     best = 1e9;
