@@ -33,6 +33,18 @@ static double now(void)
     c[4] = OP(c[4], a, b); c[5] = OP(c[5], a, b); c[6] = OP(c[6], a, b); c[7] = OP(c[7], a, b); \
     c[8] = OP(c[8], a, b); c[9] = OP(c[9], a, b); c[10] = OP(c[10], a, b); c[11] = OP(c[11], a, b)
 
+/* the best time of ROUNDS rounds of STEPS runs of BODY, in seconds, into OUT */
+#define BEST_OF(OUT, BODY)                                  \
+    do {                                                    \
+        OUT = 1e9;                                          \
+        for (int r = 0; r < ROUNDS; r++) {                  \
+            double t0 = now();                              \
+            for (long i = 0; i < STEPS; i++) { BODY; }      \
+            double t1 = now() - t0;                         \
+            OUT = t1 < OUT ? t1 : OUT;                      \
+        }                                                   \
+    } while (0)
+
 int main(int argc, char **argv)
 {
     long STEPS = 20000000L;
@@ -45,25 +57,13 @@ int main(int argc, char **argv)
         }
     }
     volatile double seed = 0.1; /* distinct starts the compiler cannot fold together */
-    double sink = 0.0, best, t;
+    double sink = 0.0, best;
     __m256d a4 = _mm256_set1_pd(1.0000001), b4 = _mm256_set1_pd(0.9999999), c4[12], one4;
     for (int k = 0; k < 12; k++) c4[k] = _mm256_set1_pd(seed + k);
     one4 = c4[0];
-    best = 1e9;
-    for (int r = 0; r < ROUNDS; r++) {
-        t = now();
-        for (long i = 0; i < STEPS; i++) one4 = _mm256_fmadd_pd(one4, a4, b4);
-        t = now() - t;
-        best = t < best ? t : best;
-    }
+    BEST_OF(best, one4 = _mm256_fmadd_pd(one4, a4, b4));
     double dependent = best / STEPS * 1e9;
-    best = 1e9;
-    for (int r = 0; r < ROUNDS; r++) {
-        t = now();
-        for (long i = 0; i < STEPS; i++) { TWELVE(_mm256_fmadd_pd, c4, a4, b4); }
-        t = now() - t;
-        best = t < best ? t : best;
-    }
+    BEST_OF(best, TWELVE(_mm256_fmadd_pd, c4, a4, b4));
     double per256 = best / (12.0 * STEPS) * 1e9;
     for (int k = 0; k < 12; k++) sink += _mm256_cvtsd_f64(c4[k]);
     sink += _mm256_cvtsd_f64(one4);
@@ -71,13 +71,7 @@ int main(int argc, char **argv)
 #ifdef __AVX512F__
     __m512d a8 = _mm512_set1_pd(1.0000001), b8 = _mm512_set1_pd(0.9999999), c8[12];
     for (int k = 0; k < 12; k++) c8[k] = _mm512_set1_pd(seed + k);
-    best = 1e9;
-    for (int r = 0; r < ROUNDS; r++) {
-        t = now();
-        for (long i = 0; i < STEPS; i++) { TWELVE(_mm512_fmadd_pd, c8, a8, b8); }
-        t = now() - t;
-        best = t < best ? t : best;
-    }
+    BEST_OF(best, TWELVE(_mm512_fmadd_pd, c8, a8, b8));
     per512 = best / (12.0 * STEPS) * 1e9;
     for (int k = 0; k < 12; k++) sink += _mm512_reduce_add_pd(c8[k]);
 #endif
