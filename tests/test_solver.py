@@ -28,7 +28,7 @@ from clothsim.solver.selfcollide.slack import PAD_ROWS, SORT_LANES, _count_runs,
 from clothsim.solver.shared import BLOCK
 from clothsim.solver.simd import FORCE_PORTABLE, has_compress
 from clothsim.solver.springs import (AHEAD_STEP, CHUNK, NO_LIMIT, SET_KIND, SET_STEP, build_stencil, force_buffer,
-                                     integrate, part_force_buffers)
+                                     force_pad, integrate, part_force_buffers)
 from clothsim.solver.step import _part_span
 
 
@@ -139,7 +139,7 @@ def test_slots_without_a_spring_add_no_force(nw, nh):
     k_kind = np.array([10.0, 7.0, 2.0])
     g = np.array([0.0, -9.8, 0.0])
     F = force_buffer(st, m.num_points)
-    pad = F.shape[2] - m.num_points
+    pad = force_pad(F, m.num_points)
     for s in range(6):
         F[s, :, pad:pad + st.count[s]] = 1e9  # the slots the loop writes; the rest stay zero
     P, L = planes(pos), planes(pos)

@@ -23,8 +23,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clothsim.solver.shared import DIVIDE
-from clothsim.solver.spring_lanes import LANES, RSQRT14, integrate_eights
-from clothsim.solver.springs import CHUNK, build_stencil, force_buffer, gap_bits, integrate, integrate_chunks
+from clothsim.solver.spring_lanes import ALIGN, LANES, RSQRT14, force_pad, integrate_eights
+from clothsim.solver.springs import (CHUNK, build_stencil, force_buffer, gap_bits, integrate, integrate_chunks,
+                                     part_force_buffers)
 
 from .test_solver import grid_model, knobs, planes, stencil
 
@@ -146,7 +147,20 @@ def test_the_force_buffer_holds_the_eight_read_before_the_first():
     even where the springs reach back fewer (rows of two or three points)"""
     for nw in (2, 3, 4, 50):
         m = grid_model(nw, 4)
-        assert force_buffer(stencil(m), 4 * nw).shape[2] - 4 * nw >= LANES
+        assert force_pad(force_buffer(stencil(m), 4 * nw), 4 * nw) >= LANES
+
+
+def test_the_force_buffers_rows_start_on_cache_lines():
+    """every set's and coordinate's slot of point 0 lies on a 64-byte line, in
+    the one buffer and in each part's, so that a call's stores of its forces
+    (points a multiple of LANES on) are aligned vectors"""
+    for nw, nh, parts in ((50, 50, 1), (7, 9, 2), (3, 5, 3)):
+        springs, n = stencil(grid_model(nw, nh)), nw * nh
+        for F in (force_buffer(springs, n), *part_force_buffers(springs, n, parts)):
+            pad = force_pad(F, n)
+            assert pad >= max(int(springs.end.max()) + 1, LANES) and pad % ALIGN == 0
+            assert F.shape[2] >= pad + n and np.all(F == 0.0)
+            assert all(F[s, c, pad:].ctypes.data % 64 == 0 for s in range(6) for c in range(3))
 
 
 @settings(max_examples=20, deadline=None)
@@ -161,7 +175,7 @@ def test_the_eights_forces_are_within_1e_14_of_exact(nw, nh, seed):
     F = force_buffer(springs, n)
     done = integrate_eights(P.copy(), L.copy(), np.ones(n), knobs(k_sets, (0.0, -9.8, 0.0), 0.998, 1e-5),
                             springs, F, 0, n, 0)
-    pad = F.shape[2] - n
+    pad = force_pad(F, n)
     for s in range(6):
         a, b = springs.start[s], springs.end[s]
         d = P[:, b:b + done] - P[:, a:a + done]

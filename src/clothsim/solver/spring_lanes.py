@@ -45,7 +45,7 @@ from .colliders.lanes import FAST, Lanes
 from .shared import KERNEL_OPTIONS, SET_STEP
 from .simd import _vector_at, has_avx512f, has_compress
 
-__all__ = ["LANES", "force_lanes", "integrate_eights", "spring_step_lanes"]
+__all__ = ["ALIGN", "LANES", "force_lanes", "force_pad", "integrate_eights", "spring_step_lanes"]
 
 SETS = len(SET_STEP)
 """spring sets of a grid cloth"""
@@ -234,6 +234,18 @@ class _Pass:
         return self.b.shuffle_vector(before, forces[c], picks)
 
 
+ALIGN = 8
+"""doubles in a 64-byte cache line: the force buffer's pad and rows are whole
+lines, so that a call of the lanes stores its forces to aligned vectors"""
+
+
+@njit(cache=True, inline="always")
+def force_pad(F, n):
+    """the slots ahead of point 0 in the force buffer ``F`` (6, 3, M) of
+    :func:`.springs.force_buffer` for ``n`` points"""
+    return F.shape[2] - (n + ALIGN - 1) // ALIGN * ALIGN
+
+
 @intrinsic
 def force_lanes(typingctx, P, rest, gaps, F, at, pad, ends, k_over_m, off):
     """The forces of the six sets' springs that start at points ``at:at +
@@ -325,7 +337,7 @@ def integrate_eights(P, L, free, knobs, springs, F, first, stop, moved):
     start, end, rest, gaps = springs.start, springs.end, springs.rest, springs.gaps
     k, g = knobs.k_over_m, knobs.gravity
     n = P.shape[1]
-    pad = F.shape[2] - n
+    pad = force_pad(F, n)
     reach = 0
     for s in range(SETS):
         reach = max(reach, start[s], end[s])

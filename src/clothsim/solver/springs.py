@@ -34,7 +34,7 @@ from ..model import BENDING, SHEARING, STRUCTURAL
 from .provot import MAX_STRETCH
 from .shared import DIVIDE, KERNEL_OPTIONS, SET_STEP, over_length
 from .simd import has_avx512f
-from .spring_lanes import LANES, integrate_eights
+from .spring_lanes import ALIGN, LANES, force_pad, integrate_eights
 
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
 """the spring kind of each stencil set"""
@@ -167,19 +167,38 @@ def wrap_columns(valid: np.ndarray, count: np.ndarray, cols: int) -> np.ndarray:
 
 
 
+def _whole_lines(count: int) -> int:
+    return -(-count // ALIGN) * ALIGN
+
+
+def _aligned_zeros(shape: tuple) -> np.ndarray:
+    """zeros of ``shape`` starting on a cache line (NumPy promises 16 bytes)"""
+    size = int(np.prod(shape))
+    raw = np.zeros(size + ALIGN)
+    skip = (-raw.ctypes.data % (8 * ALIGN)) // 8
+    return raw[skip:skip + size].reshape(shape)
+
+
 def force_buffer(stencil: GridSprings, num_points: int) -> np.ndarray:
     """Scratch for :func:`integrate`: each set's spring forces, zero-padded in
     front so that ``F[s, c, pad + p]`` is spring p and every index a point
-    reads stays inside, (6, 3, pad + N); the pad holds at least the LANES
-    slots the lanes read before their first (:mod:`.spring_lanes`)."""
-    return np.zeros((6, 3, max(int(stencil.end.max()) + 1, LANES) + num_points))
+    reads stays inside, (6, 3, pad + N rounded up to ALIGN); the pad holds at
+    least the LANES slots the lanes read before their first
+    (:mod:`.spring_lanes`), and the pad and every row are whole cache lines
+    (:func:`force_pad`)."""
+    return _aligned_zeros(_buffer_shape(stencil, num_points))
+
+
+def _buffer_shape(stencil: GridSprings, num_points: int) -> tuple:
+    pad = _whole_lines(max(int(stencil.end.max()) + 1, LANES))
+    return (6, 3, pad + _whole_lines(num_points))
 
 
 def part_force_buffers(stencil: GridSprings, num_points: int, parts: int) -> np.ndarray:
     """A :func:`force_buffer` for each of ``parts`` threads' parts, (parts, 6, 3,
-    pad + N): a part writes and reads only its own, so no force goes from one
+    pad + N'): a part writes and reads only its own, so no force goes from one
     core to the other (see :func:`integrate`)."""
-    return np.zeros((parts,) + force_buffer(stencil, num_points).shape)
+    return _aligned_zeros((parts,) + _buffer_shape(stencil, num_points))
 
 
 @njit(**KERNEL_OPTIONS)
@@ -254,7 +273,7 @@ def spring_forces(P, k_over_m, springs, F, lo, hi):
     """The forces of the springs that start at points ``lo:hi``, into ``F``; see :func:`integrate`."""
     start, end, count, rest = springs.start, springs.end, springs.count, springs.rest
     wrap, cols = springs.wrap, springs.cols
-    pad = F.shape[2] - P.shape[1]
+    pad = force_pad(F, P.shape[1])
     x, y, z = P[0], P[1], P[2]
     for s in range(6):
         k = k_over_m[s]
@@ -307,7 +326,7 @@ def verlet_gather(P, L, free, knobs, springs, F, lo, hi, with_springs):
     a loop for each case)."""
     gravity, keep, dt2 = knobs.gravity, knobs.keep, knobs.dt2
     start, end = springs.start, springs.end
-    pad = F.shape[2] - P.shape[1]
+    pad = force_pad(F, P.shape[1])
     fr = free[lo:]
     for c in range(3):
         xc, lc = P[c, lo:hi], L[c, lo:]
