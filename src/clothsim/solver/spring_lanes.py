@@ -203,10 +203,13 @@ class _Pass:
         byte = b.load(self.gap_at(s))
         if LANES < GAP_BITS:
             byte = b.trunc(b.lshr(byte, self.gap_shift), ir.IntType(LANES))
-        gap = b.bitcast(b.or_(byte, b.trunc(self.offs[s], ir.IntType(LANES))), v.bits)
+        gaps = b.or_(byte, b.trunc(self.offs[s], ir.IntType(LANES)))
+        # the lanes kept, not the gaps: a select of the product where kept, else
+        # zero, is AVX-512's multiply with zero-masking, one instruction
+        kept = b.bitcast(b.xor(gaps, ir.Constant(gaps.type, (1 << LANES) - 1)), v.bits)
         out = []
         for c in range(3):
-            value = b.select(gap, ir.Constant(v.vec, None), v.mul(f, d[c]))
+            value = b.select(kept, v.mul(f, d[c]), ir.Constant(v.vec, None))
             b.store(value, v.at(*self.F, s, c, self.base), align=8)
             out.append(value)
         return out
