@@ -23,7 +23,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clothsim.solver.shared import DIVIDE
-from clothsim.solver.spring_lanes import ALIGN, LANES, RSQRT14, force_pad, integrate_eights
+from clothsim.solver.shared import LINE
+from clothsim.solver.spring_lanes import LANES, RSQRT14, force_pad, integrate_eights
 from clothsim.solver.springs import (CHUNK, build_stencil, force_buffer, gap_bits, integrate, integrate_chunks,
                                      part_force_buffers)
 
@@ -158,7 +159,7 @@ def test_the_force_buffers_rows_start_on_cache_lines():
         springs, n = stencil(grid_model(nw, nh)), nw * nh
         for F in (force_buffer(springs, n), *part_force_buffers(springs, n, parts)):
             pad = force_pad(F, n)
-            assert pad >= max(int(springs.end.max()) + 1, LANES) and pad % ALIGN == 0
+            assert pad >= max(int(springs.end.max()) + 1, LANES) and pad % LINE == 0
             assert F.shape[2] >= pad + n and np.all(F == 0.0)
             assert all(F[s, c, pad:].ctypes.data % 64 == 0 for s in range(6) for c in range(3))
 

@@ -17,7 +17,7 @@ from .meshstep import advance_mesh, advance_mesh_parallel
 from .selfcollide import NeighbourList, near_stencil, skin_factor
 from .selfcollide.nearlist import mesh_near
 from .selfcollide.nearstencil import SKIN_FACTOR
-from .shared import BLOCK
+from .shared import BLOCK, on_lines
 from .springs import SET_KIND, build_stencil, part_force_buffers
 from .step import advance, advance_parallel, parts_for
 from .wind import wind_buffer
@@ -106,9 +106,9 @@ class ClothSolver:
             self._build_grid(first)
         else:
             self._build_mesh(first)
-        self.scratch = Scratch(P=np.zeros((3, n)), L=np.zeros((3, n)), F=self._forces,
+        self.scratch = Scratch(P=on_lines((3, n)), L=on_lines((3, n)), F=self._forces,
                                masks=np.zeros((self.parts, 2, n // BLOCK + 2), dtype=np.uint64),
-                               Q=np.zeros((3, n)), W=self._wind)
+                               Q=on_lines((3, n)), W=self._wind)
         kernel_cache.mark_warm(BUILD_VARIANT)
 
     def _points(self, size: float, order: np.ndarray) -> None:
@@ -123,7 +123,9 @@ class ClothSolver:
         triangles = slot[model.triangles].astype(model.triangles.dtype)
         for a in (rest, triangles, order):
             a.setflags(write=False)  # as the model's arrays are: the kernels are compiled for read-only ones
-        self.points = Points(rest=rest, free=(~model.pinned[order]).astype(np.float64),
+        free = on_lines(order.shape)
+        free[:] = ~model.pinned[order]
+        self.points = Points(rest=rest, free=free,
                              thickness=float(thickness), center=model.rest_positions.mean(axis=0),
                              span=2.0 * RUNAWAY_FACTOR * size, triangles=triangles, order=order)
         self.runaway2 = (RUNAWAY_FACTOR * size) ** 2

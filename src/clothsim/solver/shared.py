@@ -26,6 +26,26 @@ to (r + dr, i + di) (see :mod:`.springs`)"""
 BLOCK = 64
 """springs the Provot pass checks together: one bit each in a 64-bit word"""
 
+LINE = 8
+"""doubles in a 64-byte cache line"""
+
+
+def whole_lines(count: int) -> int:
+    """``count`` doubles rounded up to whole cache lines"""
+    return -(-int(count) // LINE) * LINE
+
+
+def on_lines(shape: tuple, fill: float = 0.0) -> np.ndarray:
+    """A float64 array of ``shape`` filled with ``fill`` that starts on a 64-byte
+    cache line (NumPy promises 16 bytes). A vector of eight doubles loaded
+    from or stored to a line costs half what one across two lines does
+    (docs/performance.md, 'Arrays on cache lines'), so the planes and the
+    springs' rows the kernels read eight at a time start on one."""
+    size = int(np.prod(shape))
+    raw = np.full(size + LINE, fill)
+    skip = (-raw.ctypes.data % (8 * LINE)) // 8
+    return raw[skip:skip + size].reshape(shape)
+
 
 @njit(**KERNEL_OPTIONS, inline="always")
 def inv_length(l2):

@@ -42,10 +42,10 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from .colliders.lanes import FAST, Lanes
-from .shared import KERNEL_OPTIONS, SET_STEP
+from .shared import KERNEL_OPTIONS, LINE, SET_STEP
 from .simd import _vector_at, has_avx512f, has_compress
 
-__all__ = ["ALIGN", "LANES", "force_lanes", "force_pad", "integrate_eights", "spring_step_lanes"]
+__all__ = ["LANES", "force_lanes", "force_pad", "integrate_eights", "spring_step_lanes"]
 
 SETS = len(SET_STEP)
 """spring sets of a grid cloth"""
@@ -237,16 +237,13 @@ class _Pass:
         return self.b.shuffle_vector(before, forces[c], picks)
 
 
-ALIGN = 8
-"""doubles in a 64-byte cache line: the force buffer's pad and rows are whole
-lines, so that a call of the lanes stores its forces to aligned vectors"""
-
-
 @njit(cache=True, inline="always")
 def force_pad(F, n):
     """the slots ahead of point 0 in the force buffer ``F`` (6, 3, M) of
-    :func:`.springs.force_buffer` for ``n`` points"""
-    return F.shape[2] - (n + ALIGN - 1) // ALIGN * ALIGN
+    :func:`.springs.force_buffer` for ``n`` points: its pad and its rows are
+    whole cache lines, so that a call of the lanes stores its forces to
+    vectors that each lie on one"""
+    return F.shape[2] - (n + LINE - 1) // LINE * LINE
 
 
 @intrinsic

@@ -32,9 +32,9 @@ from numba import njit
 
 from ..model import BENDING, SHEARING, STRUCTURAL
 from .provot import MAX_STRETCH
-from .shared import DIVIDE, KERNEL_OPTIONS, SET_STEP, over_length
+from .shared import DIVIDE, KERNEL_OPTIONS, SET_STEP, on_lines, over_length, whole_lines
 from .simd import has_avx512f
-from .spring_lanes import ALIGN, LANES, force_pad, integrate_eights
+from .spring_lanes import LANES, force_pad, integrate_eights
 
 SET_KIND = np.array([STRUCTURAL, STRUCTURAL, SHEARING, SHEARING, BENDING, BENDING])
 """the spring kind of each stencil set"""
@@ -70,17 +70,20 @@ class GridSprings(NamedTuple):
     count: np.ndarray
     """p runs over ``range(count[s])``, int64 (6,)"""
     valid: np.ndarray
-    """1.0 where spring p of set s exists, 0.0 where it would wrap a row, (6, N);
-    the wind's stencils weigh by it, the force loop uses ``wrap`` instead"""
+    """1.0 where spring p of set s exists, 0.0 where it would wrap a row or
+    lies past the cloth, (6, N'): N rounded up to whole cache lines, each
+    set's row starting a line (:func:`.shared.on_lines`), as in the arrays
+    below; the wind's stencils weigh by it, the force loop uses ``wrap``
+    instead"""
     rest: np.ndarray
-    """rest lengths [m], 0 where no spring, (6, N)"""
+    """rest lengths [m], 0 where no spring, (6, N')"""
     limit: np.ndarray
-    """Provot: ``MAX_STRETCH * rest`` [m] where the spring exists, else NO_LIMIT, (6, N)"""
+    """Provot: ``MAX_STRETCH * rest`` [m] where the spring exists, else NO_LIMIT, (6, N')"""
     batch: np.ndarray
-    """the half of the set's Provot pass that spring p takes part in, uint8 (6, N):
+    """the half of the set's Provot pass that spring p takes part in, uint8 (6, N'):
     the springs of one half share no point"""
     share: np.ndarray
-    """fraction of a Provot correction that goes to each end, (6, 2, N): half
+    """fraction of a Provot correction that goes to each end, (6, 2, N'): half
     each, all to the free end when the other is pinned, none when both are"""
     wrap: np.ndarray
     """the grid columns where set s's springs would wrap a row, int64 (6, 2), -1
@@ -108,11 +111,14 @@ def build_stencil(rest_positions: np.ndarray, pinned: np.ndarray, rows: int, col
     r = np.repeat(np.arange(rows), cols)
     i = np.tile(np.arange(cols), rows)
     start, end, count = np.zeros(6, np.int64), np.zeros(6, np.int64), np.zeros(6, np.int64)
-    valid = np.zeros((6, n))
-    rest = np.zeros((6, n))
-    limit = np.full((6, n), NO_LIMIT)
-    batch = np.zeros((6, n), dtype=np.uint8)
-    share = np.zeros((6, 2, n))
+    # every set's row of slots whole cache lines, each starting one: the eights
+    # and Provot's check load eight slots at a time
+    slots = whole_lines(n)
+    valid = on_lines((6, slots))
+    rest = on_lines((6, slots))
+    limit = on_lines((6, slots), NO_LIMIT)
+    batch = np.zeros((6, slots), dtype=np.uint8)
+    share = on_lines((6, 2, slots))
     free = ~pinned
     pos = rest_positions
     for s, (dr, di) in enumerate(SET_STEP):
@@ -167,38 +173,26 @@ def wrap_columns(valid: np.ndarray, count: np.ndarray, cols: int) -> np.ndarray:
 
 
 
-def _whole_lines(count: int) -> int:
-    return -(-count // ALIGN) * ALIGN
-
-
-def _aligned_zeros(shape: tuple) -> np.ndarray:
-    """zeros of ``shape`` starting on a cache line (NumPy promises 16 bytes)"""
-    size = int(np.prod(shape))
-    raw = np.zeros(size + ALIGN)
-    skip = (-raw.ctypes.data % (8 * ALIGN)) // 8
-    return raw[skip:skip + size].reshape(shape)
-
-
 def force_buffer(stencil: GridSprings, num_points: int) -> np.ndarray:
     """Scratch for :func:`integrate`: each set's spring forces, zero-padded in
     front so that ``F[s, c, pad + p]`` is spring p and every index a point
-    reads stays inside, (6, 3, pad + N rounded up to ALIGN); the pad holds at
+    reads stays inside, (6, 3, pad + N rounded up to whole lines); the pad holds at
     least the LANES slots the lanes read before their first
     (:mod:`.spring_lanes`), and the pad and every row are whole cache lines
     (:func:`force_pad`)."""
-    return _aligned_zeros(_buffer_shape(stencil, num_points))
+    return on_lines(_buffer_shape(stencil, num_points))
 
 
 def _buffer_shape(stencil: GridSprings, num_points: int) -> tuple:
-    pad = _whole_lines(max(int(stencil.end.max()) + 1, LANES))
-    return (6, 3, pad + _whole_lines(num_points))
+    pad = whole_lines(max(int(stencil.end.max()) + 1, LANES))
+    return (6, 3, pad + whole_lines(num_points))
 
 
 def part_force_buffers(stencil: GridSprings, num_points: int, parts: int) -> np.ndarray:
     """A :func:`force_buffer` for each of ``parts`` threads' parts, (parts, 6, 3,
     pad + N'): a part writes and reads only its own, so no force goes from one
     core to the other (see :func:`integrate`)."""
-    return _aligned_zeros((parts,) + _buffer_shape(stencil, num_points))
+    return on_lines((parts,) + _buffer_shape(stencil, num_points))
 
 
 @njit(**KERNEL_OPTIONS)
