@@ -22,10 +22,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from clothsim.solver.shared import DIVIDE
-from clothsim.solver.shared import LINE
+from clothsim.solver.shared import DIVIDE, LINE
 from clothsim.solver.spring_lanes import LANES, RSQRT14, force_pad, integrate_eights
-from clothsim.solver.springs import (CHUNK, build_stencil, force_buffer, gap_bits, integrate, integrate_chunks,
+from clothsim.solver.springs import (CHUNK, NO_LIMIT, build_stencil, force_buffer, gap_bits, integrate, integrate_chunks,
                                      part_force_buffers)
 
 from .test_solver import grid_model, knobs, planes, stencil
@@ -162,6 +161,28 @@ def test_the_force_buffers_rows_start_on_cache_lines():
             assert pad >= max(int(springs.end.max()) + 1, LANES) and pad % LINE == 0
             assert F.shape[2] >= pad + n and np.all(F == 0.0)
             assert all(F[s, c, pad:].ctypes.data % 64 == 0 for s in range(6) for c in range(3))
+
+
+def test_the_solvers_planes_and_the_springs_rows_start_on_cache_lines():
+    """the arrays the kernels load eight doubles at a time: the solver's planes
+    and free weights start on a 64-byte line, and every set's row of the
+    stencil's per-slot arrays too, its padding slots holding no spring"""
+    from clothsim import Simulation
+    from clothsim.scene import parse_scene
+
+    scene = {"cloth": {"width": 1.0, "height": 1.0, "num_width_points": 7, "num_height_points": 9,
+                       "thickness": 0.01, "orientation": 0, "pinned": [[0, 0]], "damping": 0.2,
+                       "density": 150, "ks": 5000}}
+    solver = Simulation(parse_scene(scene, "lines"), threads=1).solver
+    n = 63
+    for a in (solver.scratch.P, solver.scratch.L, solver.scratch.Q, solver.points.free):
+        assert a.ctypes.data % 64 == 0 and a.shape[-1] == n
+    springs = solver.springs
+    assert springs.rest.shape == (6, 64)
+    for rows in (springs.valid, springs.rest, springs.limit, springs.share[:, 0], springs.share[:, 1]):
+        assert all(rows[s].ctypes.data % 64 == 0 for s in range(6))
+    assert np.all(springs.valid[:, n:] == 0.0) and np.all(springs.rest[:, n:] == 0.0)
+    assert np.all(springs.limit[:, n:] == NO_LIMIT)
 
 
 @settings(max_examples=20, deadline=None)
