@@ -213,7 +213,7 @@ def integrate(P, L, free, knobs, springs, F, first, stop, moved):
     when its kind is disabled); ``knobs`` is a :class:`~clothsim.solver.groups.Knobs`,
     ``springs`` the cloth's :class:`GridSprings`.
 
-    Spring forces go to the (6, 3, pad + N) buffer ``F`` first, then each
+    Spring forces go to the (6, 3, pad + N') buffer ``F`` first (:func:`force_buffer`), then each
     point gathers its twelve: ``a[q] = g + sum_s F_s[q - start_s] - F_s[q - end_s]``.
     That reads each force twice but writes each acceleration once, instead
     of adding into both ends of every spring. Where BY_LANES, the cloth is
