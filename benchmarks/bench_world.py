@@ -16,7 +16,9 @@ edges, and self-collision then has more to do), so whole substeps compare
 scenes, not colliders. ``--kernels`` times the collider kernels alone instead,
 each on the cloth of its own case after 1.5 s (draped on the sphere, lying
 on the box) one substep's fall further, called on a fresh copy of it many
-times (the copy's own time taken off), best of the rounds: the still sphere,
+times from a compiled loop, as the substep calls them (from Python each call
+would add numba's dispatch), the copy's own time taken off, the positions on
+cache lines as the solver's are; best of the rounds: the still sphere,
 the spinning sphere (on the still one's cloth), the box, the turned box (on
 its own cloth), the box sliding, the box sliding and turning about y, the
 tilted box (on its own cloth), the box sliding and turning about x and y
@@ -87,22 +89,49 @@ def run_once(sim: Simulation, seconds: float) -> float:
 
 def _settled(scene: dict):
     """(P, L, free, sim): the (3, N) positions of ``scene``'s cloth after 1.5 s, one
-    substep's fall more (so that the points resting on the collider cross it again)"""
-    import numpy as np
+    substep's fall more (so that the points resting on the collider cross it again),
+    and its last positions, each array starting on a cache line as the solver's do"""
+    from clothsim.solver.shared import on_lines
 
     sim = Simulation(parse_scene(scene, "bench"), threads=1)
     sim.run(1.5)
-    P = np.ascontiguousarray(sim.state.positions.T)
+    P, L = on_lines(sim.state.positions.T.shape), on_lines(sim.state.positions.T.shape)
+    P[:] = sim.state.positions.T
+    L[:] = sim.state.last_positions.T
     P[1] -= 9.8 * sim.params.dt ** 2
-    return P, np.ascontiguousarray(sim.state.last_positions.T), sim.solver.points.free, sim
+    return P, L, sim.solver.points.free, sim
 
 
-def kernel_times(rounds: int, calls: int = 400) -> None:
+def _calls(kernel):
+    """A compiled loop of ``reps`` calls of ``kernel(P, *rest)``, each on a fresh
+    copy of ``start`` in ``P`` (None: the copies alone). The substep calls
+    its kernels from compiled code: timed from Python, each call would also
+    pay numba's dispatch, a microsecond or two, which differs with the
+    arguments."""
+    from numba import njit
+
+    if kernel is None:
+        @njit
+        def copies(P, start, reps, rest):
+            for _ in range(reps):
+                P[:, :] = start
+        return copies
+
+    @njit
+    def calls(P, start, reps, rest):
+        for _ in range(reps):
+            P[:, :] = start
+            kernel(P, *rest)
+    return calls
+
+
+def kernel_times(rounds: int, calls: int = 2000) -> None:
     import numpy as np
     import sphere_then
 
     from clothsim.motion import Animation, Keyframe
     from clothsim.solver.colliders import box, sphere
+    from clothsim.solver.shared import on_lines
     from clothsim.solver.wind import blow, blow_grid, pack_wind, wind_buffer
     from clothsim.world_spec import WindSpec
 
@@ -140,39 +169,46 @@ def kernel_times(rounds: int, calls: int = 400) -> None:
     wind = pack_wind(WindSpec((5.0, 0.0, 0.0)), 1.5, dt)
     knobs = sim.solver.knobs(sim.params)
     n = on_sphere[0].shape[1]
-    W, P = np.zeros((3, n)), np.zeros((3, n))
+    W = np.zeros((3, n))
     zero, count, slot = np.int64(0), np.int64(n), np.int64(SLOT)
 
     cols = sim.model.cloths[0].grid[1]
     T = wind_buffer(n, cols)
     weight = sim.solver.springs.valid[0]
 
-    def run(name):
-        if name in ("copy", "wind", "wind, triangle list"):
+    def args(name):
+        """the arguments after the positions of case ``name``'s kernel, and the
+        positions it starts from"""
+        if name in ("wind", "wind, triangle list"):
             P0, L = on_sphere[0], on_sphere[1]
-            if name == "copy":
-                return lambda: np.copyto(P, P0)
             if name == "wind":  # the grid path's stencils, as the substep runs it
-                return lambda: (np.copyto(P, P0), blow_grid(P, L, sim.solver.points.free, weight, knobs.inv_mass,
-                                                            knobs.dt2, wind, T, slot, cols))
-            return lambda: (np.copyto(P, P0), blow(P, L, sim.solver.points, knobs.inv_mass, knobs.dt2, wind, W, slot))
+                return blow_grid, P0, (L, sim.solver.points.free, weight, knobs.inv_mass, knobs.dt2, wind, T, slot,
+                                       cols)
+            return blow, P0, (L, sim.solver.points, knobs.inv_mass, knobs.dt2, wind, W, slot)
         kernel, rows, (P0, L, free, _) = work[name]
-        return lambda: (np.copyto(P, P0), kernel(P, L, free, rows, zero, count, slot))
+        return kernel, P0, (L, free, rows, zero, count, slot)
 
-    names = ["copy", *work, "wind", "wind, triangle list"]
-    best = {name: np.inf for name in names}
+    names = [*work, "wind", "wind, triangle list"]
+    cases_ = {name: args(name) for name in names}
+    loops = {name: _calls(cases_[name][0]) for name in names}
+    starts = {name: cases_[name][1] for name in names}
+    P = on_lines(on_sphere[0].shape)
+    copies = _calls(None)
+    copies(P, starts["sphere"], 1, ())  # compile
     for name in names:
-        run(name)()  # compile
+        loops[name](P, starts[name], 1, cases_[name][2])
+    order = ["copy", *names]
+    best = {name: np.inf for name in order}
     for r in range(rounds):
-        for name in (names if r % 2 == 0 else names[::-1]):
-            f = run(name)
-            t0 = time.thread_time()
-            for _ in range(calls):
-                f()
-            best[name] = min(best[name], (time.thread_time() - t0) / calls)
+        for name in (order if r % 2 == 0 else order[::-1]):
+            loop, start, rest = (copies, starts["sphere"], ()) if name == "copy" else (loops[name], starts[name],
+                                                                                     cases_[name][2])
+            t0 = time.perf_counter()
+            loop(P, start, calls, rest)
+            best[name] = min(best[name], (time.perf_counter() - t0) / calls)
     sphere_us = (best["sphere"] - best["copy"]) * 1e6
     then_us = (best["sphere at c978e85"] - best["copy"]) * 1e6
-    for name in names[1:]:
+    for name in names:
         us = (best[name] - best["copy"]) * 1e6
         emit({"bench": "world-kernels", "case": name, "points": n, "us_per_substep": round(us, 2),
               "of_sphere": round(us / sphere_us, 2), "of_sphere_then": round(us / then_us, 2), **machine()})
