@@ -28,14 +28,19 @@ FLAGS = 0x3F
 """all six sticky exception flags"""
 
 
+def _status_call(builder, name, slot):
+    """``name`` (llvm.x86.sse.stmxcsr or ldmxcsr) on the 32 bits at ``slot``"""
+    byte_ptr = ir.IntType(8).as_pointer()
+    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [byte_ptr]), name)
+    builder.call(fn, [builder.bitcast(slot, byte_ptr)])
+
+
 @intrinsic
 def _read_status(typingctx):
     """MXCSR, as a uint32"""
     def codegen(context, builder, signature, args):
         slot = cgutils.alloca_once(builder, ir.IntType(32))
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ir.IntType(8).as_pointer()]),
-                                            "llvm.x86.sse.stmxcsr")
-        builder.call(fn, [builder.bitcast(slot, ir.IntType(8).as_pointer())])
+        _status_call(builder, "llvm.x86.sse.stmxcsr", slot)
         return builder.load(slot)
     return types.uint32(), codegen
 
@@ -45,9 +50,7 @@ def _write_status(typingctx, value):
     """MXCSR set to ``value`` (a uint32)"""
     def codegen(context, builder, signature, args):
         slot = cgutils.alloca_once_value(builder, args[0])
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ir.IntType(8).as_pointer()]),
-                                            "llvm.x86.sse.ldmxcsr")
-        builder.call(fn, [builder.bitcast(slot, ir.IntType(8).as_pointer())])
+        _status_call(builder, "llvm.x86.sse.ldmxcsr", slot)
         return context.get_dummy_value()
     return types.void(types.uint32), codegen
 
