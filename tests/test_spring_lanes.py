@@ -4,8 +4,8 @@ Where ``springs.BY_LANES``, :func:`integrate` moves every point but those
 of the last rows through the LLVM vector code of the lanes, eight points a
 call with AVX-512 and four without; :func:`integrate_chunks` is the loops
 it replaced, which take the last rows, and the whole cloth on AMD's Zen
-cores without AVX-512. The lanes are checked on every machine. Both must give the same positions, last positions and force
-buffer on any grid (rows shorter than a call and longer), any spring
+cores without AVX-512. The lanes are checked on every machine. Both must give
+the same positions, last positions and force buffer on any grid (rows shorter than a call and longer), any spring
 constants (kinds switched off among them), pins, and the ranges a thread's
 part takes: the same to the bit where both divide by the length's square
 root (without AVX-512, on an AMD Zen core: ``shared.DIVIDE``), and within
@@ -24,8 +24,8 @@ from hypothesis import strategies as st
 
 from clothsim.solver.shared import DIVIDE, LINE
 from clothsim.solver.spring_lanes import LANES, RSQRT14, force_pad, integrate_eights
-from clothsim.solver.springs import (CHUNK, NO_LIMIT, build_stencil, force_buffer, gap_bits, integrate, integrate_chunks,
-                                     part_force_buffers)
+from clothsim.solver.springs import (CHUNK, NO_LIMIT, build_stencil, force_buffer, gap_bits, integrate,
+                                     integrate_chunks, part_force_buffers)
 
 from .test_solver import grid_model, knobs, planes, stencil
 

@@ -92,6 +92,7 @@ def _choose_centres(Q, reference, centres, skin):
     each coordinate smaller than ``skin`` * 2**-24 made 0 (see :func:`_level_both`)."""
     n = reference.shape[1]
     step = max(1, n // DRIFT_SAMPLE)
+    tiny = skin * 2.0 ** -24
     for c in range(3):
         s, lo, hi = 0.0, np.inf, -np.inf
         x, r = Q[c], reference[c]
@@ -102,7 +103,6 @@ def _choose_centres(Q, reference, centres, skin):
             lo = d if d < lo else lo
             hi = d if d > hi else hi
             k += 1
-        tiny = skin * 2.0 ** -24
         mean, mid = s / k, 0.5 * (lo + hi)
         centres[0, c] = mean if abs(mean) >= tiny else 0.0
         centres[1, c] = mid if abs(mid) >= tiny else 0.0
