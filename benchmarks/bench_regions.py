@@ -7,11 +7,12 @@ one core wrote last and the other reads next. This one times them inside the
 real run. It copies the ``clothsim`` package into a temporary folder,
 inserts reads of the CPU's time-stamp counter (``llvm.readcyclecounter``)
 around each parallel region of the grid path's substep and of
-self-collision, and around each part's work inside it, and runs the whole
-fall and settle of ``selfCollision`` (``--seconds``, 2 by default) at
-``--size`` on each thread count of ``--threads``, in a process of its own
-with a numba cache of its own (the copy compiles once; the user's cache is
-not touched).
+self-collision, and around each part's work inside it, and runs the first
+``--seconds`` (2 by default) of ``--scene`` (``selfCollision`` by default:
+then its whole fall and settle), resized to ``--size`` with its pins kept
+at the corners, on each thread count of ``--threads``, in a process of its
+own with a numba cache of its own (the copy compiles once; the user's cache
+is not touched).
 
 A ``"bench": "regions"`` line per stage and thread count gives µs per
 substep averaged over the run (a build's stages spread over every
@@ -23,7 +24,7 @@ the whole substep, substeps/s and the builds of the neighbour list. The
 counter's rate is taken against the wall clock over half a second; it is
 the same on every core of the machines here (``constant_tsc``).
 
-    python benchmarks/bench_regions.py [--size 100] [--threads 1,2] [--seconds 2.0]
+    python benchmarks/bench_regions.py [--size 100] [--threads 1,2] [--seconds 2.0] [--scene selfCollision]
 """
 
 from __future__ import annotations
@@ -38,6 +39,11 @@ import tempfile
 from pathlib import Path
 
 import clothsim
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import SCENES  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
 
 TIMER = '''"""reads of the time-stamp counter, summed into ACC (written by bench_regions.py)"""
 import numpy as np
@@ -160,11 +166,11 @@ def instrument(package: Path) -> None:
     collide.write_text(_patch(collide.read_text(), edits, "solver/selfcollide/collide.py"))
 
 
-def child(size: int, threads: list[int], seconds: float) -> None:
+def child(size: int, threads: list[int], seconds: float, name: str) -> None:
     """In the process with the instrumented copy first on the path: run and print."""
     import time
 
-    from common import emit, machine
+    from common import emit, machine, sized
     from numba import njit
 
     from clothsim import Simulation
@@ -178,12 +184,11 @@ def child(size: int, threads: list[int], seconds: float) -> None:
     c0, w0 = now(), time.perf_counter()
     time.sleep(0.5)
     ghz = (now() - c0) / (time.perf_counter() - w0) / 1e9
-    info = {**machine(), "grid": f"{size}x{size}", "tsc_ghz": round(ghz, 3)}
-    scene = Path(__file__).resolve().parent.parent / "scenes" / "selfCollision.json"
+    info = {**machine(), "scene": name, "grid": f"{size}x{size}", "tsc_ghz": round(ghz, 3)}
+    scene = ROOT / "scenes" / f"{name}.json"
     halves: dict = {}
     for t in threads:
-        sim = Simulation.from_file(scene, [f"cloth.num_width_points={size}", f"cloth.num_height_points={size}"],
-                                   threads=t)
+        sim = Simulation.from_file(scene, sized(name, size), threads=t)
         sim.step(substeps=0)  # compiled before the timing
         frames = round(seconds * sim.params.frames_per_sec)
         region_timer.ACC[:] = 0
@@ -218,6 +223,8 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=100)
     ap.add_argument("--threads", default="1,2", help="thread counts to run, in turn (default 1,2)")
     ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--scene", default="selfCollision", choices=SCENES,
+                    help="the standard scene to run (default selfCollision)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     try:
@@ -227,7 +234,7 @@ def main() -> None:
     if args.size < 2 or args.seconds <= 0 or min(threads) < 1:
         ap.error("--size must be 2 or more, --seconds more than 0 and every thread count 1 or more")
     if args.child:
-        child(args.size, threads, args.seconds)
+        child(args.size, threads, args.seconds, args.scene)
         return
     with tempfile.TemporaryDirectory() as tmp:
         package = Path(tmp) / "clothsim"
@@ -237,7 +244,7 @@ def main() -> None:
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([tmp, os.environ.get("PYTHONPATH", "")]),
                "NUMBA_CACHE_DIR": str(Path(tmp) / "numba-cache")}
         done = subprocess.run([sys.executable, __file__, "--child", "--size", str(args.size), "--threads",
-                               args.threads, "--seconds", str(args.seconds)], env=env)
+                               args.threads, "--seconds", str(args.seconds), "--scene", args.scene], env=env)
     sys.exit(done.returncode)
 
 

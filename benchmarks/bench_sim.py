@@ -62,25 +62,14 @@ from pathlib import Path
 import numba
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import emit, machine, peak_rss_mib  # noqa: E402
+from common import SCENES, emit, machine, peak_rss_mib, sized  # noqa: E402
 from core_trip import CoreTrip  # noqa: E402
 
 from clothsim import Simulation  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENES = ["pinned2", "pinned4", "sphere", "plane", "selfCollision"]
 SECONDS = {50: 1.0, 100: 0.4, 200: 0.1}
 SETTLE_SECONDS = 2.0
-
-
-def sized(scene: str, n: int) -> list[str]:
-    """Overrides that resize a standard scene to n x n, keeping its pins at the corners."""
-    out = [f"cloth.num_width_points={n}", f"cloth.num_height_points={n}"]
-    if scene == "pinned2":
-        out.append(f"cloth.pinned=[[0,0],[{n - 1},0]]")
-    elif scene == "pinned4":
-        out.append(f"cloth.pinned=[[0,0],[{n - 1},0],[0,{n - 1}],[{n - 1},{n - 1}]]")
-    return out
 
 
 def run_once(scene: str, n: int, seconds: float, self_collision: bool = True, springs: bool = True,

@@ -8,6 +8,20 @@ import resource
 import sys
 
 
+SCENES = ["pinned2", "pinned4", "sphere", "plane", "selfCollision"]
+"""the standard scenes, each one grid cloth that :func:`sized` resizes"""
+
+
+def sized(scene: str, n: int) -> list[str]:
+    """Overrides that resize a standard scene to n x n, keeping its pins at the corners."""
+    out = [f"cloth.num_width_points={n}", f"cloth.num_height_points={n}"]
+    if scene == "pinned2":
+        out.append(f"cloth.pinned=[[0,0],[{n - 1},0]]")
+    elif scene == "pinned4":
+        out.append(f"cloth.pinned=[[0,0],[{n - 1},0],[0,{n - 1}],[{n - 1},{n - 1}]]")
+    return out
+
+
 def machine() -> dict:
     cpu = platform.processor() or platform.machine()
     try:
