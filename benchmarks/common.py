@@ -1,4 +1,5 @@
-"""What every benchmark line carries: the machine and the library versions."""
+"""What the benchmarks share: the standard scenes and their resizing, and what
+every benchmark line carries: the machine and the library versions."""
 
 from __future__ import annotations
 
@@ -6,7 +7,6 @@ import json
 import platform
 import resource
 import sys
-
 
 SCENES = ["pinned2", "pinned4", "sphere", "plane", "selfCollision"]
 """the standard scenes, each one grid cloth that :func:`sized` resizes"""
